@@ -1,0 +1,1 @@
+"""Ray-casting backends (built-in plugins): ``numpy`` (reference) and ``embree`` (embreex)."""

@@ -1,0 +1,644 @@
+"""Pure-NumPy bounding-volume hierarchy for closest-hit ray/triangle queries.
+
+This is the reference ray backend of lidarsim: no compiled dependencies, float64
+throughout, deterministic results.  The tree is a binary BVH built top-down with a
+binned surface-area heuristic (SAH), one whole tree level at a time so that the
+build is vectorised over all nodes of a level.  Traversal is an ordered
+depth-first search with one explicit stack per ray, vectorised over rays: every
+iteration advances each still-active ray by exactly one node, so the work per ray
+is that of a classic nearest-child-first traversal while the Python overhead is
+paid once per iteration for the whole ray batch.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["TriangleBVH"]
+
+# Relative slack applied to the far end of ray/box intervals and to the pruning
+# distance.  Rounding in the slab test and in the triangle test can otherwise
+# reject a box whose contents are hit at (or within a few ulps of) the current
+# best distance, which would break exact-tie resolution and edge hits on box
+# faces.  A larger value only costs a little extra traversal.
+_BOX_SLACK = 1.0 + 1e-10
+
+# Barycentric tolerance: inclusive edge tests so a ray through a shared edge or
+# vertex hits at least one of the adjacent triangles (watertight closed meshes).
+_BARY_TOL = 1e-12
+
+# Rays whose direction makes |cos(angle to the face normal)| below this value are
+# treated as parallel to the face and never hit it.
+_PARALLEL_COS = 1e-12
+
+# A triangle is degenerate when |e1 x e2| <= _DEGENERATE_SIN * |e1| * |e2|, that is
+# when its two edges are collinear to within rounding.
+_DEGENERATE_SIN = 1e-14
+
+# SAH cost model: relative cost of visiting an interior node versus testing one
+# triangle.  In NumPy a node visit (two box tests plus stack bookkeeping) costs
+# about as much as a couple of vectorised triangle tests.
+_SAH_TRAVERSAL_COST = 2.0
+_SAH_TRIANGLE_COST = 1.0
+_SAH_BINS = 16
+
+_DEFAULT_CHUNK = 65536
+
+# Rows of the per-triangle SoA table used by the leaf test.
+_V0 = slice(0, 3)
+_E1 = slice(3, 6)  # v0 - v1 (note the sign, see _triangle_hits)
+_E2 = slice(6, 9)  # v2 - v0
+_N = slice(9, 12)  # (v1 - v0) x (v2 - v0), unnormalised
+_PAR = 12  # parallel threshold: _PARALLEL_COS * |n|
+
+
+class TriangleBVH:
+    """Bounding-volume hierarchy over a triangle mesh with closest-hit queries.
+
+    Build instances with :meth:`build`.  Nodes are stored as flat arrays: for
+    every interior node the bounds of its two children are kept together in a
+    structure-of-arrays table so a traversal step gathers both child boxes at
+    once; leaves reference a contiguous run of a leaf-ordered triangle table.
+
+    Attributes
+    ----------
+    n_triangles : int
+        Number of faces of the input mesh (degenerate faces included).
+    n_nodes : int
+        Number of BVH nodes (0 when the mesh has no usable triangle).
+    depth : int
+        Number of levels of the tree (0 for an empty tree).
+
+    Notes
+    -----
+    Degenerate (zero-area) and non-finite triangles are dropped at build time and
+    can never be hit.  Backfaces are not culled.
+    """
+
+    def __init__(
+        self,
+        n_triangles: int,
+        face_normals: np.ndarray,
+        root_bounds: np.ndarray,
+        child_bounds: np.ndarray,
+        first_child: np.ndarray,
+        leaf_start: np.ndarray,
+        leaf_count: np.ndarray,
+        tri_table: np.ndarray,
+        tri_face: np.ndarray,
+        depth: int,
+    ) -> None:
+        self.n_triangles = int(n_triangles)
+        self._face_normals = face_normals
+        self._root_bounds = root_bounds
+        self._child_bounds = child_bounds
+        self._first_child = first_child
+        self._leaf_start = leaf_start
+        self._leaf_count = leaf_count
+        self._is_leaf = leaf_count > 0
+        self._tri_table = tri_table
+        self._tri_face = tri_face
+        self.depth = int(depth)
+
+    @property
+    def n_nodes(self) -> int:
+        """int: Number of nodes in the hierarchy."""
+        return int(self._first_child.shape[0])
+
+    # ------------------------------------------------------------------ build
+
+    @classmethod
+    def build(
+        cls, vertices: np.ndarray, faces: np.ndarray, leaf_size: int = 8
+    ) -> "TriangleBVH":
+        """Build a BVH over a triangle mesh.
+
+        Parameters
+        ----------
+        vertices : numpy.ndarray
+            ``(V, 3)`` vertex coordinates, converted to float64.
+        faces : numpy.ndarray
+            ``(F, 3)`` integer vertex indices per triangle.
+        leaf_size : int, optional
+            Maximum number of triangles per leaf (>= 1).  The SAH may stop
+            earlier; leaves only exceed this when splitting is impossible, which
+            cannot happen because a fallback median split is always available.
+
+        Returns
+        -------
+        TriangleBVH
+            The hierarchy, ready for :meth:`intersect`.
+
+        Raises
+        ------
+        ValueError
+            If the arrays have the wrong shape, a face index is out of range or
+            ``leaf_size`` is smaller than 1.
+        """
+        vertices, faces = _validate_mesh(vertices, faces)
+        if int(leaf_size) < 1:
+            raise ValueError(f"leaf_size must be >= 1, got {leaf_size}")
+        leaf_size = int(leaf_size)
+
+        p0 = vertices[faces[:, 0]]
+        p1 = vertices[faces[:, 1]]
+        p2 = vertices[faces[:, 2]]
+        e1 = p1 - p0
+        e2 = p2 - p0
+        normal = np.cross(e1, e2)
+        nlen = np.sqrt(np.einsum("ij,ij->i", normal, normal))
+        scale = np.sqrt(np.einsum("ij,ij->i", e1, e1) * np.einsum("ij,ij->i", e2, e2))
+        with np.errstate(invalid="ignore", over="ignore"):
+            usable = (nlen > _DEGENERATE_SIN * scale) & np.isfinite(nlen) & np.isfinite(scale)
+            usable &= np.isfinite(p0).all(1) & np.isfinite(p1).all(1) & np.isfinite(p2).all(1)
+        face_normals = np.full((faces.shape[0], 3), np.nan)
+        face_normals[usable] = normal[usable] / nlen[usable, None]
+
+        ids = np.flatnonzero(usable)
+        if ids.size == 0:
+            return cls._empty(faces.shape[0], face_normals)
+
+        tri_lo = np.minimum(np.minimum(p0[ids], p1[ids]), p2[ids])
+        tri_hi = np.maximum(np.maximum(p0[ids], p1[ids]), p2[ids])
+        tree = _build_tree(tri_lo, tri_hi, leaf_size)
+        order = ids[tree["perm"]]
+
+        tri_table = np.empty((13, order.size))
+        tri_table[_V0] = p0[order].T
+        tri_table[_E1] = -e1[order].T
+        tri_table[_E2] = e2[order].T
+        tri_table[_N] = normal[order].T
+        tri_table[_PAR] = _PARALLEL_COS * nlen[order]
+
+        root_bounds = np.stack([tree["lo"][0], tree["hi"][0]])  # (2, 3)
+        return cls(
+            n_triangles=faces.shape[0],
+            face_normals=face_normals,
+            root_bounds=root_bounds,
+            child_bounds=_child_bound_table(tree["lo"], tree["hi"], tree["first_child"]),
+            first_child=tree["first_child"],
+            leaf_start=tree["leaf_start"],
+            leaf_count=tree["leaf_count"],
+            tri_table=np.ascontiguousarray(tri_table),
+            tri_face=order.astype(np.int64),
+            depth=tree["depth"],
+        )
+
+    @classmethod
+    def _empty(cls, n_triangles: int, face_normals: np.ndarray) -> "TriangleBVH":
+        """Return a tree without nodes: every ray misses."""
+        return cls(
+            n_triangles=n_triangles,
+            face_normals=face_normals,
+            root_bounds=np.zeros((2, 3)),
+            child_bounds=np.zeros((12, 0)),
+            first_child=np.zeros(0, np.int64),
+            leaf_start=np.zeros(0, np.int64),
+            leaf_count=np.zeros(0, np.int64),
+            tri_table=np.zeros((13, 0)),
+            tri_face=np.zeros(0, np.int64),
+            depth=0,
+        )
+
+    # -------------------------------------------------------------- intersect
+
+    def intersect(
+        self,
+        origins: np.ndarray,
+        directions: np.ndarray,
+        t_min: float = 1e-9,
+        t_max: float = np.inf,
+        chunk_size: int = _DEFAULT_CHUNK,
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Find the closest triangle hit of every ray.
+
+        Parameters
+        ----------
+        origins : numpy.ndarray
+            ``(N, 3)`` ray origins, converted to float64.
+        directions : numpy.ndarray
+            ``(N, 3)`` unit ray directions, converted to float64.  They are not
+            renormalised: the returned distance is the ray parameter ``t`` of
+            ``origin + t * direction``, a distance only for unit directions.
+        t_min : float, optional
+            Hits must satisfy ``t > t_min`` (must be finite and >= 0).
+        t_max : float, optional
+            Hits must satisfy ``t <= t_max``.
+        chunk_size : int, optional
+            Number of rays traversed together; bounds the memory of the per-ray
+            stacks and work arrays.
+
+        Returns
+        -------
+        distance : numpy.ndarray
+            ``(N,)`` float64 hit distance, NaN where the ray misses.
+        face : numpy.ndarray
+            ``(N,)`` int64 index of the hit face in the input ``faces``, -1 on miss.
+        normal : numpy.ndarray
+            ``(N, 3)`` float64 unit geometric normal ``normalize((v1-v0) x (v2-v0))``
+            of the hit face (not flipped toward the ray), NaN on miss.
+
+        Raises
+        ------
+        ValueError
+            On badly shaped inputs or invalid ``t_min``/``t_max``/``chunk_size``.
+
+        Notes
+        -----
+        The closest hit wins; hits at exactly the same distance resolve to the
+        lowest face index.  Rays with non-finite or zero direction, or non-finite
+        origin, miss.
+        """
+        origins, directions = _validate_rays(origins, directions)
+        t_min, t_max = _validate_range(t_min, t_max)
+        if int(chunk_size) < 1:
+            raise ValueError(f"chunk_size must be >= 1, got {chunk_size}")
+        n = origins.shape[0]
+        dist = np.full(n, np.nan)
+        face = np.full(n, -1, dtype=np.int64)
+        if n == 0 or self.n_nodes == 0 or t_max < t_min:
+            return dist, face, np.full((n, 3), np.nan)
+
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            for lo in range(0, n, int(chunk_size)):
+                hi = min(lo + int(chunk_size), n)
+                t, f = self._traverse(origins[lo:hi].T, directions[lo:hi].T, t_min, t_max)
+                hit = f >= 0
+                dist[lo:hi][hit] = t[hit]
+                face[lo:hi][hit] = f[hit]
+        normal = np.full((n, 3), np.nan)
+        hit = face >= 0
+        normal[hit] = self._face_normals[face[hit]]
+        return dist, face, normal
+
+    def _traverse(
+        self, org: np.ndarray, dirs: np.ndarray, t_min: float, t_max: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Traverse one chunk of rays given as ``(3, n)`` arrays.
+
+        Returns the best distance and the hit face index (-1 on miss).
+        """
+        n = org.shape[1]
+        org = np.ascontiguousarray(org)
+        dirs = np.ascontiguousarray(dirs)
+        inv = 1.0 / dirs
+        t_best = np.full(n, t_max)
+        # Hit face id; int64 max stands for "none yet" so the "lower face id
+        # wins" tie rule needs no special case before the first hit.
+        best = np.full(n, np.iinfo(np.int64).max, dtype=np.int64)
+
+        good = np.isfinite(org).all(0) & np.isfinite(dirs).all(0) & (dirs != 0).any(0)
+        rb = self._root_bounds
+        _, root_hit = _box_hits(
+            rb[0][:, None, None], rb[1][:, None, None], org[:, None, :], inv[:, None, :],
+            t_min, t_best,
+        )
+        act = np.flatnonzero(root_hit[0] & good)
+
+        depth = max(self.depth, 1)
+        cur = np.zeros(n, dtype=np.int64)
+        sp = np.zeros(n, dtype=np.int64)
+        stack_node = np.empty(n * depth, dtype=np.int64)
+        stack_t = np.empty(n * depth)
+        alive = np.zeros(n, dtype=bool)
+        alive[act] = True
+        state = (org, dirs, inv, t_min, t_best, best, cur, sp, stack_node, stack_t, depth, alive)
+
+        while act.size:
+            leaf = self._is_leaf[cur[act]]
+            at_leaf = act[leaf]
+            at_inner = act[~leaf]
+            done_inner = self._inner_step(at_inner, state)
+            self._leaf_step(at_leaf, state)
+            _pop(np.concatenate([done_inner, at_leaf]), state)
+            act = act[alive[act]]
+
+        miss = best == np.iinfo(np.int64).max
+        best[miss] = -1
+        return t_best, best
+
+    def _inner_step(self, rays: np.ndarray, state: tuple) -> np.ndarray:
+        """Advance rays sitting on interior nodes; return rays that must pop."""
+        org, _, inv, t_min, t_best, _, cur, sp, stack_node, stack_t, depth, _ = state
+        if rays.size == 0:
+            return rays
+        node = cur[rays]
+        cb = self._child_bounds[:, node].reshape(2, 3, 2, rays.size)
+        tnear, hit = _box_hits(
+            cb[0], cb[1], org[:, rays][:, None, :], inv[:, rays][:, None, :], t_min, t_best[rays]
+        )
+        h0, h1 = hit[0], hit[1]
+        both = h0 & h1
+        # Visit the nearer child now and push the farther one with its entry
+        # distance, so it can be skipped at pop time if a closer hit turns up.
+        second_nearer = tnear[1] < tnear[0]
+        child = np.where(both, second_nearer, h1)
+        first = self._first_child[node]
+        cur[rays] = first + child
+        if both.any():
+            r = rays[both]
+            far = ~second_nearer[both]
+            slot = r * depth + sp[r]
+            stack_node[slot] = first[both] + far
+            stack_t[slot] = np.where(far, tnear[1][both], tnear[0][both])
+            sp[r] += 1
+        return rays[~(h0 | h1)]
+
+    def _leaf_step(self, rays: np.ndarray, state: tuple) -> None:
+        """Test rays sitting on leaves against the leaf triangles."""
+        org, dirs, _, t_min, t_best, best, cur, *_ = state
+        if rays.size == 0:
+            return
+        node = cur[rays]
+        count = self._leaf_count[node]
+        offsets = np.cumsum(count) - count
+        n_pairs = int(offsets[-1] + count[-1])
+        pair_ray = np.repeat(np.arange(rays.size), count)
+        tri = np.repeat(self._leaf_start[node] - offsets, count) + np.arange(n_pairs)
+        ray = rays[pair_ray]
+        t = _triangle_hits(self._tri_table[:, tri], org[:, ray], dirs[:, ray], t_min)
+
+        t_leaf = np.minimum.reduceat(t, offsets)
+        # Among the pairs at a ray's minimum distance keep the lowest face id.
+        big = np.iinfo(np.int64).max
+        cand = np.where(t == t_leaf[pair_ray], self._tri_face[tri], big)
+        f_leaf = np.minimum.reduceat(cand, offsets)
+        tb = t_best[rays]
+        better = (t_leaf < tb) | ((t_leaf == tb) & (f_leaf < best[rays]))
+        better &= t_leaf < np.inf  # all-miss leaves give t = inf with a real face id
+        r = rays[better]
+        t_best[r] = t_leaf[better]
+        best[r] = f_leaf[better]
+
+
+# ---------------------------------------------------------------- traversal kernels
+
+
+def _box_hits(lo, hi, org, inv, t_min, t_best):
+    """Slab test of rays against boxes.
+
+    ``lo``/``hi`` are ``(3, K, A)`` (or broadcastable) box corners, ``org``/``inv``
+    ``(3, 1, A)`` ray origins and reciprocal directions.  Returns the entry
+    distance (clamped to ``t_min``) and a hit mask, both ``(K, A)``.
+
+    A zero direction component gives ``inv = +-inf``; when the origin lies exactly
+    on that slab plane the product is ``0 * inf = NaN``.  ``minimum``/``maximum``
+    propagate that NaN per axis and ``fmax``/``fmin`` then ignore it, so such an
+    axis imposes no constraint, which is right because the ray runs inside the
+    (closed) slab.
+    """
+    t0 = (lo - org) * inv
+    t1 = (hi - org) * inv
+    t_lo = np.minimum(t0, t1)
+    t_hi = np.maximum(t0, t1)
+    tnear = np.fmax(np.fmax(t_lo[0], t_lo[1]), np.fmax(t_lo[2], t_min))
+    tfar = np.fmin(np.fmin(t_hi[0], t_hi[1]), np.fmin(t_hi[2], t_best))
+    return tnear, tnear <= tfar * _BOX_SLACK
+
+
+def _triangle_hits(tri, org, dirs, t_min):
+    """Ray/triangle distances for ``(ray, triangle)`` pairs, ``inf`` on miss.
+
+    Moeller-Trumbore in the precomputed-normal form: with ``s = o - v0``,
+    ``r = d x s``, ``n = (v1 - v0) x (v2 - v0)`` and ``den = d . n`` the
+    barycentrics are ``u = ((v2 - v0) . r) / den``, ``v = ((v0 - v1) . r) / den``
+    and the distance ``t = -(s . n) / den``.  Working relative to ``v0`` keeps
+    far-away origins and coordinates accurate in float64.
+    """
+    sx = org[0] - tri[0]
+    sy = org[1] - tri[1]
+    sz = org[2] - tri[2]
+    dx, dy, dz = dirs
+    rx = dy * sz - dz * sy
+    ry = dz * sx - dx * sz
+    rz = dx * sy - dy * sx
+    nx, ny, nz = tri[9], tri[10], tri[11]
+    den = dx * nx + dy * ny + dz * nz
+    inv_den = 1.0 / den
+    u = (tri[6] * rx + tri[7] * ry + tri[8] * rz) * inv_den
+    v = (tri[3] * rx + tri[4] * ry + tri[5] * rz) * inv_den
+    t = -(sx * nx + sy * ny + sz * nz) * inv_den
+    ok = (np.abs(den) > tri[_PAR]) & (u >= -_BARY_TOL) & (v >= -_BARY_TOL)
+    ok &= (u + v <= 1.0 + _BARY_TOL) & (t > t_min)
+    return np.where(ok, t, np.inf)
+
+
+def _pop(rays, state):
+    """Pop stacked nodes for ``rays``, skipping those beyond the best hit.
+
+    Rays with an exhausted stack are retired (``alive`` cleared).
+    """
+    _, _, _, _, t_best, _, cur, sp, stack_node, stack_t, depth, alive = state
+    while rays.size:
+        s = sp[rays]
+        empty = s == 0
+        alive[rays[empty]] = False
+        rays = rays[~empty]
+        s = s[~empty] - 1
+        sp[rays] = s
+        slot = rays * depth + s
+        keep = stack_t[slot] <= t_best[rays] * _BOX_SLACK
+        cur[rays[keep]] = stack_node[slot[keep]]
+        rays = rays[~keep]
+
+
+# ------------------------------------------------------------------------ build
+
+
+def _build_tree(tri_lo: np.ndarray, tri_hi: np.ndarray, leaf_size: int) -> dict:
+    """Top-down binned-SAH build, vectorised over all nodes of one tree level.
+
+    Each node owns a contiguous range of ``perm``; splitting a node partitions
+    its range in place, so leaf ranges end up contiguous in ``perm`` order.
+    Children of a node are allocated as a consecutive pair.
+    """
+    m = tri_lo.shape[0]
+    cent = 0.5 * (tri_lo + tri_hi)
+    perm = np.arange(m)
+    cap = 2 * m - 1
+    node_lo = np.empty((cap, 3))
+    node_hi = np.empty((cap, 3))
+    first_child = np.full(cap, -1, dtype=np.int64)
+    leaf_start = np.zeros(cap, dtype=np.int64)
+    leaf_count = np.zeros(cap, dtype=np.int64)
+
+    act_id = np.zeros(1, dtype=np.int64)
+    act_start = np.zeros(1, dtype=np.int64)
+    act_count = np.full(1, m, dtype=np.int64)
+    n_nodes = 1
+    depth = 0
+    while act_id.size:
+        depth += 1
+        offsets = np.cumsum(act_count) - act_count
+        total = int(offsets[-1] + act_count[-1])
+        seg = np.repeat(np.arange(act_id.size), act_count)
+        local = np.arange(total) - offsets[seg]
+        tri = perm[act_start[seg] + local]
+        lo, hi, c = tri_lo[tri], tri_hi[tri], cent[tri]
+
+        nlo = np.minimum.reduceat(lo, offsets, axis=0)
+        nhi = np.maximum.reduceat(hi, offsets, axis=0)
+        node_lo[act_id] = nlo
+        node_hi[act_id] = nhi
+
+        bins, axis, split_bin, split_cost = _best_splits(lo, hi, c, seg, offsets, act_count)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rel_cost = split_cost / _half_area(nlo.T, nhi.T)
+        sah_split = _SAH_TRAVERSAL_COST + _SAH_TRIANGLE_COST * rel_cost
+        sah_leaf = _SAH_TRIANGLE_COST * act_count
+        make_leaf = (act_count <= leaf_size) & ~(sah_split < sah_leaf)
+        make_leaf |= act_count <= 1
+
+        leaf_id = act_id[make_leaf]
+        leaf_start[leaf_id] = act_start[make_leaf]
+        leaf_count[leaf_id] = act_count[make_leaf]
+
+        split = ~make_leaf
+        if not split.any():
+            break
+        # No SAH split exists when all centroids coincide: halve by position.
+        median = split & ~np.isfinite(split_cost)
+        goes_left = np.take_along_axis(bins, axis[seg][:, None], axis=1)[:, 0] <= split_bin[seg]
+        goes_left = np.where(median[seg], local < act_count[seg] // 2, goes_left)
+
+        n_left = np.add.reduceat(goes_left.astype(np.int64), offsets)
+        lefts_before = np.cumsum(goes_left) - goes_left
+        left_rank = lefts_before - lefts_before[offsets][seg]
+        new_local = np.where(goes_left, left_rank, n_left[seg] + (local - left_rank))
+        moving = split[seg]
+        perm[act_start[seg[moving]] + new_local[moving]] = tri[moving]
+
+        k = int(split.sum())
+        children = n_nodes + 2 * np.arange(k, dtype=np.int64)
+        first_child[act_id[split]] = children
+        n_nodes += 2 * k
+        s_start, s_count, s_left = act_start[split], act_count[split], n_left[split]
+        act_id = np.stack([children, children + 1], axis=1).ravel()
+        act_start = np.stack([s_start, s_start + s_left], axis=1).ravel()
+        act_count = np.stack([s_left, s_count - s_left], axis=1).ravel()
+
+    return {
+        "perm": perm,
+        "lo": node_lo[:n_nodes],
+        "hi": node_hi[:n_nodes],
+        "first_child": first_child[:n_nodes],
+        "leaf_start": leaf_start[:n_nodes],
+        "leaf_count": leaf_count[:n_nodes],
+        "depth": depth,
+    }
+
+
+def _best_splits(lo, hi, cent, seg, offsets, count):
+    """Binned SAH: best split plane of every node of a level.
+
+    Returns the per-triangle bin indices ``(T, 3)``, and per node the split axis,
+    the last bin going left, and the unnormalised SAH cost
+    ``area(L) * n(L) + area(R) * n(R)`` (``inf`` when no split separates anything).
+    """
+    n = offsets.size
+    nb = _SAH_BINS
+    clo = np.minimum.reduceat(cent, offsets, axis=0)
+    chi = np.maximum.reduceat(cent, offsets, axis=0)
+    ext = chi - clo
+    with np.errstate(divide="ignore"):
+        scale = np.where(ext > 0, nb / ext, 0.0)
+    bins = ((cent - clo[seg]) * scale[seg]).astype(np.int64)
+    np.clip(bins, 0, nb - 1, out=bins)
+
+    # One flat bin id per (bin, axis, node), all three axes in one scatter pass.
+    # Bins lead so the prefix sweeps below run over contiguous blocks.
+    key = ((bins.T * 3 + np.arange(3)[:, None]) * n + seg[None, :]).ravel()
+    size = nb * 3 * n
+    cnt = np.bincount(key, minlength=size).reshape(nb, 3, n)
+    blo = np.full((3, size), np.inf)
+    bhi = np.full((3, size), -np.inf)
+    for j in range(3):
+        np.minimum.at(blo[j], key, np.tile(lo[:, j], 3))
+        np.maximum.at(bhi[j], key, np.tile(hi[:, j], 3))
+    blo = blo.reshape(3, nb, 3, n)
+    bhi = bhi.reshape(3, nb, 3, n)
+
+    # Split "after bin i" for i < nb - 1: left = bins[:i+1], right = bins[i+1:].
+    left_lo = np.minimum.accumulate(blo, axis=1)[:, :-1]
+    left_hi = np.maximum.accumulate(bhi, axis=1)[:, :-1]
+    right_lo = np.minimum.accumulate(blo[:, ::-1], axis=1)[:, -2::-1]
+    right_hi = np.maximum.accumulate(bhi[:, ::-1], axis=1)[:, -2::-1]
+    n_left = np.cumsum(cnt, axis=0)[:-1]
+    n_right = count[None, None, :] - n_left
+    with np.errstate(invalid="ignore"):
+        cost = _half_area(left_lo, left_hi) * n_left + _half_area(right_lo, right_hi) * n_right
+    cost = np.where((n_left > 0) & (n_right > 0), cost, np.inf)  # (nb - 1, 3, n)
+
+    flat = cost.reshape(3 * (nb - 1), n)
+    best = np.argmin(flat, axis=0)
+    best_cost = flat[best, np.arange(n)]
+    return bins, best % 3, best // 3, best_cost
+
+
+def _half_area(lo, hi):
+    """Half surface area of boxes given as ``(3, ...)`` corner arrays."""
+    e = hi - lo
+    return e[0] * e[1] + e[1] * e[2] + e[2] * e[0]
+
+
+def _child_bound_table(lo, hi, first_child):
+    """``(12, n_nodes)`` SoA table of both children's boxes per interior node.
+
+    Row ``lohi * 6 + axis * 2 + child`` so a gathered block reshapes to
+    ``(lo/hi, axis, child, rays)``.
+    """
+    n = first_child.shape[0]
+    table = np.zeros((2, 3, 2, n))
+    inner = first_child >= 0
+    c = first_child[inner]
+    for child in (0, 1):
+        table[0, :, child, inner] = lo[c + child]
+        table[1, :, child, inner] = hi[c + child]
+    return np.ascontiguousarray(table.reshape(12, n))
+
+
+# ------------------------------------------------------------------- validation
+
+
+def _validate_mesh(vertices, faces):
+    """Return float64 ``(V, 3)`` vertices and int64 ``(F, 3)`` faces or raise."""
+    vertices = np.ascontiguousarray(vertices, dtype=np.float64)
+    faces = np.asarray(faces)
+    if vertices.ndim != 2 or vertices.shape[1] != 3:
+        raise ValueError(f"vertices must have shape (V, 3), got {vertices.shape}")
+    if faces.size == 0:
+        faces = faces.reshape(0, 3)
+    if faces.ndim != 2 or faces.shape[1] != 3:
+        raise ValueError(f"faces must have shape (F, 3), got {faces.shape}")
+    if faces.size and not np.issubdtype(faces.dtype, np.integer):
+        raise ValueError(f"faces must be integer, got dtype {faces.dtype}")
+    faces = np.ascontiguousarray(faces, dtype=np.int64)
+    if faces.size and (faces.min() < 0 or faces.max() >= vertices.shape[0]):
+        raise ValueError("faces reference vertices out of range")
+    return vertices, faces
+
+
+def _validate_rays(origins, directions):
+    """Return float64 ``(N, 3)`` origins and directions or raise."""
+    origins = np.ascontiguousarray(origins, dtype=np.float64)
+    directions = np.ascontiguousarray(directions, dtype=np.float64)
+    if origins.size == 0 and directions.size == 0:
+        return origins.reshape(0, 3), directions.reshape(0, 3)
+    if origins.ndim != 2 or origins.shape[1] != 3:
+        raise ValueError(f"origins must have shape (N, 3), got {origins.shape}")
+    if directions.shape != origins.shape:
+        raise ValueError(
+            f"directions must have the shape of origins {origins.shape}, got {directions.shape}"
+        )
+    return origins, directions
+
+
+def _validate_range(t_min, t_max):
+    """Return ``(t_min, t_max)`` as floats or raise on an invalid interval."""
+    t_min = float(t_min)
+    t_max = float(t_max)
+    if not np.isfinite(t_min) or t_min < 0.0:
+        raise ValueError(f"t_min must be finite and >= 0, got {t_min}")
+    if np.isnan(t_max):
+        raise ValueError("t_max must not be NaN")
+    return t_min, t_max

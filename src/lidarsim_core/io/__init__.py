@@ -1,0 +1,1 @@
+"""Point-cloud exporters (built-in plugins) and atomic file writing."""

@@ -1,0 +1,186 @@
+"""The triangle mesh of a target, with per-face part labels, and loading from files.
+
+Meshes stay in their body frame for the whole simulation; rays are moved into it instead, so
+each backend builds its acceleration structure once per mesh (keyed by :attr:`Mesh.key`).
+"""
+
+from __future__ import annotations
+
+import hashlib
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+
+import numpy as np
+
+from .errors import MeshError
+
+#: Suffixes trimesh reads that we support explicitly (others trimesh knows are tried too).
+MESH_SUFFIXES = (".stl", ".obj", ".ply", ".glb", ".gltf", ".off")
+
+
+@dataclass(frozen=True, eq=False)
+class Mesh:
+    """A triangle mesh with named parts.
+
+    Attributes
+    ----------
+    vertices
+        (V, 3) float64 vertex positions in the body frame (m).
+    faces
+        (F, 3) int64 vertex indices.
+    face_part
+        (F,) int32 index into :attr:`part_names` for every face.
+    part_names
+        Names of the parts (labels written into the point record).
+    name
+        A human-readable name for messages.
+    """
+
+    vertices: np.ndarray
+    faces: np.ndarray
+    face_part: np.ndarray
+    part_names: tuple[str, ...]
+    name: str = "mesh"
+    _cache: dict = field(default_factory=dict, repr=False, compare=False)
+
+    @classmethod
+    def from_arrays(cls, vertices: np.ndarray, faces: np.ndarray,
+                    face_part: np.ndarray | None = None,
+                    part_names: tuple[str, ...] | None = None, *, name: str = "mesh",
+                    source: str | None = None) -> "Mesh":
+        """Validate arrays and build a mesh (raises :class:`MeshError` naming ``source``)."""
+        where = source or name
+        vertices = np.ascontiguousarray(vertices, dtype=np.float64)
+        faces = np.ascontiguousarray(faces, dtype=np.int64)
+        if vertices.ndim != 2 or vertices.shape[1] != 3:
+            raise MeshError(f"vertices must be (V, 3), got {vertices.shape}", source=where)
+        if faces.ndim != 2 or faces.shape[1] != 3 or len(faces) == 0:
+            raise MeshError("mesh has no triangular faces", source=where)
+        if not np.all(np.isfinite(vertices)):
+            raise MeshError("mesh has non-finite (NaN or infinite) vertex coordinates", source=where)
+        if faces.min() < 0 or faces.max() >= len(vertices):
+            raise MeshError("face indices out of range", source=where)
+        if face_part is None:
+            face_part = np.zeros(len(faces), dtype=np.int32)
+            part_names = part_names or (name,)
+        face_part = np.ascontiguousarray(face_part, dtype=np.int32)
+        part_names = tuple(part_names or ())
+        if face_part.shape != (len(faces),) or (len(face_part) and
+                                                 (face_part.min() < 0 or
+                                                  face_part.max() >= len(part_names))):
+            raise MeshError("face part labels do not match the part names", source=where)
+        mesh = cls(vertices, faces, face_part, part_names, name)
+        if not np.any(mesh.face_areas > 0):
+            raise MeshError("mesh has only degenerate (zero-area) faces", source=where)
+        return mesh
+
+    @cached_property
+    def key(self) -> str:
+        """Content hash: equal geometry gives equal keys (for acceleration-structure caches)."""
+        digest = hashlib.sha1()
+        digest.update(self.vertices.tobytes())
+        digest.update(self.faces.tobytes())
+        return digest.hexdigest()
+
+    @cached_property
+    def triangles(self) -> np.ndarray:
+        """(F, 3, 3) float64 vertex coordinates of every face."""
+        return self.vertices[self.faces]
+
+    @cached_property
+    def face_normals(self) -> np.ndarray:
+        """(F, 3) unit geometric normals (right-hand rule); zero for degenerate faces."""
+        tri = self.triangles
+        normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+        norm = np.linalg.norm(normal, axis=1, keepdims=True)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            return np.where(norm > 0, normal / norm, 0.0)
+
+    @cached_property
+    def face_areas(self) -> np.ndarray:
+        """(F,) triangle areas (m²)."""
+        tri = self.triangles
+        return 0.5 * np.linalg.norm(np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]), axis=1)
+
+    @cached_property
+    def bounds(self) -> np.ndarray:
+        """(2, 3) axis-aligned bounding box (min, max)."""
+        used = self.vertices[np.unique(self.faces)]
+        return np.stack([used.min(axis=0), used.max(axis=0)])
+
+    @property
+    def n_faces(self) -> int:
+        """Number of triangles."""
+        return len(self.faces)
+
+    def to_trimesh(self):
+        """A ``trimesh.Trimesh`` copy (imports trimesh)."""
+        import trimesh
+
+        return trimesh.Trimesh(self.vertices, self.faces, process=False)
+
+
+def load_mesh_file(path: str | Path, *, scale: float = 1.0, source: str | None = None,
+                   field: str | None = None) -> Mesh:
+    """Read any mesh format trimesh reads; each named object of a scene becomes a part.
+
+    Parameters
+    ----------
+    path
+        The mesh file (STL, OBJ, PLY, GLB/GLTF, OFF, ...).
+    scale
+        Factor applied to the coordinates (e.g. 0.001 for a CAD file in millimetres).
+    source, field
+        Where the path came from, for error messages.
+
+    Raises
+    ------
+    MeshError
+        If the file is missing, unreadable, or holds no usable triangles.
+    """
+    import trimesh
+
+    path = Path(path)
+    where = f"{source}: field '{field}': {path}" if source and field else str(path)
+    if not path.is_file():
+        raise MeshError("mesh file not found", source=where)
+    try:
+        loaded = trimesh.load(str(path), process=False)
+    except Exception as exc:  # trimesh raises many types for garbage input
+        raise MeshError(f"cannot read mesh: {type(exc).__name__}: {exc}", source=where) from None
+    parts: list[tuple[str, np.ndarray, np.ndarray]] = []
+    if isinstance(loaded, trimesh.Scene):
+        for node in loaded.graph.nodes_geometry:
+            transform, geom_name = loaded.graph[node]
+            geom = loaded.geometry.get(geom_name)
+            if not isinstance(geom, trimesh.Trimesh) or len(geom.faces) == 0:
+                continue
+            verts = trimesh.transform_points(np.asarray(geom.vertices, dtype=np.float64), transform)
+            parts.append((str(node), verts, np.asarray(geom.faces)))
+    elif isinstance(loaded, trimesh.Trimesh):
+        parts.append((path.stem, np.asarray(loaded.vertices, dtype=np.float64),
+                      np.asarray(loaded.faces)))
+    if not parts or all(len(f) == 0 for _, _, f in parts):
+        raise MeshError("mesh file contains no triangles", source=where)
+    return merge_parts(parts, name=path.stem, scale=scale, source=where)
+
+
+def merge_parts(parts: list[tuple[str, np.ndarray, np.ndarray]], *, name: str,
+                scale: float = 1.0, source: str | None = None) -> Mesh:
+    """Concatenate ``(part name, vertices, faces)`` pieces into one labelled :class:`Mesh`.
+
+    Pieces with the same name share one label.
+    """
+    names: list[str] = []
+    verts, faces, labels = [], [], []
+    offset = 0
+    for part, v, f in parts:
+        if part not in names:
+            names.append(part)
+        verts.append(np.asarray(v, dtype=np.float64) * scale)
+        faces.append(np.asarray(f, dtype=np.int64) + offset)
+        labels.append(np.full(len(f), names.index(part), dtype=np.int32))
+        offset += len(v)
+    return Mesh.from_arrays(np.concatenate(verts), np.concatenate(faces), np.concatenate(labels),
+                            tuple(names), name=name, source=source)

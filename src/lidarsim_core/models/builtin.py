@@ -1,0 +1,103 @@
+"""Built-in plugin: procedural targets (the Envisat model and analytic test shapes)."""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+import numpy as np
+from pydantic import Field
+
+from ..components import ComponentOptions
+from ..hookspecs import hookimpl
+from ..mesh import Mesh, merge_parts
+from ..targets import TargetModel
+
+
+class EnvisatOptions(ComponentOptions):
+    """Options of the Envisat model."""
+
+    detail: Literal["coarse", "medium", "fine"] | int = Field(
+        "medium", description="'coarse' (hundreds of triangles), 'medium' (thousands), 'fine' "
+                              "(~100k), or an integer tessellation factor.")
+
+
+class EnvisatModel(TargetModel):
+    """Parametric ESA Envisat: bus, solar array on its boom, ASAR antenna and appendages."""
+
+    name = "envisat"
+    Options = EnvisatOptions
+    options: EnvisatOptions
+
+    def build(self) -> Mesh:
+        from .envisat import build_envisat
+
+        vertices, faces, face_part, names = build_envisat(self.options.detail)
+        return Mesh.from_arrays(vertices, faces, face_part, names, name="envisat")
+
+
+class BoxOptions(ComponentOptions):
+    """Options of the box model."""
+
+    extents_m: tuple[float, float, float] = Field((1.0, 1.0, 1.0), description="Edge lengths (m).")
+
+
+class BoxModel(TargetModel):
+    """Axis-aligned box centred on the body origin (analytic test target)."""
+
+    name = "box"
+    Options = BoxOptions
+    options: BoxOptions
+
+    def build(self) -> Mesh:
+        import trimesh
+
+        box = trimesh.creation.box(extents=self.options.extents_m)
+        return merge_parts([("box", box.vertices, box.faces)], name="box")
+
+
+class SphereOptions(ComponentOptions):
+    """Options of the sphere model."""
+
+    radius_m: float = Field(1.0, gt=0)
+    subdivisions: int = Field(4, ge=0, le=7, description="Icosphere subdivision level.")
+
+
+class SphereModel(TargetModel):
+    """Icosphere centred on the body origin (analytic test target)."""
+
+    name = "sphere"
+    Options = SphereOptions
+    options: SphereOptions
+
+    def build(self) -> Mesh:
+        import trimesh
+
+        sphere = trimesh.creation.icosphere(self.options.subdivisions, self.options.radius_m)
+        return merge_parts([("sphere", sphere.vertices, sphere.faces)], name="sphere")
+
+
+class PlateOptions(ComponentOptions):
+    """Options of the plate model."""
+
+    size_m: tuple[float, float] = Field((1.0, 1.0), description="Edge lengths along Y and Z (m).")
+
+
+class PlateModel(TargetModel):
+    """Flat square plate in the body YZ plane facing -X and +X (two triangles)."""
+
+    name = "plate"
+    Options = PlateOptions
+    options: PlateOptions
+
+    def build(self) -> Mesh:
+        hy, hz = np.asarray(self.options.size_m) / 2
+        vertices = np.array([[0, -hy, -hz], [0, hy, -hz], [0, hy, hz], [0, -hy, hz]], float)
+        faces = np.array([[0, 1, 2], [0, 2, 3]])
+        return merge_parts([("plate", vertices, faces)], name="plate")
+
+
+@hookimpl
+def lidarsim_register_target_models(register: Any) -> None:
+    """Register Envisat and the analytic shapes."""
+    for model in (EnvisatModel, BoxModel, SphereModel, PlateModel):
+        register(model)

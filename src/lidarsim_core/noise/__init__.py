@@ -1,0 +1,1 @@
+"""Measurement-noise models (built-in plugins), applied as a chain named in the scenario."""

@@ -1,0 +1,97 @@
+"""Base class of noise-model plugins and the data they act on.
+
+A noise model acts at one or both of two stages of the pipeline:
+
+``perturb_rays``
+    before ray casting, on the directions actually flown by the pulses (the seed paper's
+    angular error: the pulse really goes elsewhere and hits another point of the surface);
+``perturb_returns``
+    after ray casting, on what the sensor reports (the seed paper's range error, Eq. 4).
+
+All random numbers come from :func:`lidarsim_core.rng.ray_normals` / ``ray_uniforms`` keyed by
+the model's stream name and the ray index, so noise is reproducible and chunk-independent.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..components import Component
+from ..datasheet import SensorDatasheet
+from ..rng import ray_normals, ray_uniforms
+
+
+@dataclass(frozen=True)
+class NoiseContext:
+    """What a noise model may depend on besides the rays: the sensor, the seed and the frame."""
+
+    sensor: SensorDatasheet
+    seed: int
+    frame: int
+    stream: str
+
+    def normals(self, ray_index: np.ndarray, draws: int) -> np.ndarray:
+        """(N, draws) standard normals for these rays from this model's own stream."""
+        return ray_normals(self.seed, self.frame, self.stream, ray_index, draws)
+
+    def uniforms(self, ray_index: np.ndarray, draws: int) -> np.ndarray:
+        """(N, draws) uniforms in (0, 1) for these rays from this model's own stream."""
+        return ray_uniforms(self.seed, self.frame, self.stream, ray_index, draws)
+
+
+@dataclass
+class Returns:
+    """Detected returns of one chunk, in the sensor frame at each ray's emission time.
+
+    Noise models change ``range_measured`` and ``direction_measured`` in place (new arrays).
+
+    Attributes
+    ----------
+    ray_index
+        (N,) int64 global ray index.
+    direction_flown
+        (N, 3) unit direction the pulse actually travelled (after ray-stage noise).
+    range_true
+        (N,) float64 distance to the true surface point along ``direction_flown`` (m).
+    range_measured
+        (N,) float64 range the sensor reports (m).
+    direction_measured
+        (N, 3) unit direction along which the reported point is placed.
+    """
+
+    ray_index: np.ndarray
+    direction_flown: np.ndarray
+    range_true: np.ndarray
+    range_measured: np.ndarray
+    direction_measured: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.ray_index)
+
+
+class NoiseModel(Component):
+    """A measurement-noise model. Override one or both stages; the defaults do nothing."""
+
+    def perturb_rays(self, directions: np.ndarray, ray_index: np.ndarray,
+                     ctx: NoiseContext) -> np.ndarray:
+        """Return the directions the pulses actually fly ((N, 3) unit vectors)."""
+        return directions
+
+    def perturb_returns(self, returns: Returns, ctx: NoiseContext) -> Returns:
+        """Return the returns with the measurement perturbed."""
+        return returns
+
+
+def perpendicular_basis(directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Two unit vectors ``u``, ``v`` perpendicular to each (N, 3) unit direction and to each
+    other, chosen deterministically (``u`` horizontal where possible)."""
+    helper = np.zeros_like(directions)
+    near_vertical = np.abs(directions[:, 2]) > 0.9
+    helper[~near_vertical, 2] = 1.0
+    helper[near_vertical, 1] = 1.0
+    u = np.cross(helper, directions)
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    v = np.cross(directions, u)
+    return u, v

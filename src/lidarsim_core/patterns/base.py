@@ -1,0 +1,126 @@
+"""Base class of scan-pattern plugins and the ray batch they produce.
+
+A pattern is a pure, vectorised function of the global ray index: ray ``k`` of a scan has a
+fixed emission time, direction and channel. Generating ``[0, T)`` at once or in pieces
+therefore gives identical rays.
+"""
+
+from __future__ import annotations
+
+import math
+from abc import abstractmethod
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+
+from ..components import Component
+from ..datasheet import SensorDatasheet
+from .geometry import off_axis_angle
+
+
+@dataclass(frozen=True)
+class RayBatch:
+    """Rays emitted by a sensor, in the sensor frame.
+
+    Attributes
+    ----------
+    index
+        (N,) int64 global ray index (emission order from scan start).
+    t
+        (N,) float64 emission time in seconds from scan start.
+    direction
+        (N, 3) float64 unit directions in the sensor frame (+X boresight, +Y left, +Z up).
+    channel
+        (N,) int16 emitter/channel id.
+    """
+
+    index: np.ndarray
+    t: np.ndarray
+    direction: np.ndarray
+    channel: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.index)
+
+
+class ScanPattern(Component):
+    """A scan pattern bound to one sensor datasheet.
+
+    Subclasses implement :meth:`rays_for_indices`; ones whose rays are not emitted one by one
+    at the datasheet point rate (e.g. flash arrays) also override :meth:`index_range` and
+    :meth:`time_of_index`.
+
+    Parameters
+    ----------
+    options
+        Validated pattern options.
+    sensor
+        The datasheet the pattern belongs to (FOV, point rate).
+    """
+
+    def __init__(self, options: Any = None, sensor: SensorDatasheet | None = None) -> None:
+        super().__init__(options)
+        if sensor is None:
+            raise TypeError(f"{type(self).__name__} needs the sensor datasheet")
+        self.sensor = sensor
+
+    @classmethod
+    def for_sensor(cls, sensor: SensorDatasheet, overrides: Mapping[str, Any] | None = None,
+                   *, source: str | None = None) -> "ScanPattern":
+        """Build the pattern from the datasheet's ``scan_pattern.options`` plus ``overrides``.
+
+        Raises
+        ------
+        ConfigError
+            Naming ``source`` and the option when an option is unknown or invalid.
+        """
+        from ..config_io import validate_model
+
+        options = {**sensor.scan_pattern.options, **(overrides or {})}
+        opts = validate_model(cls.Options, options, source=source,
+                              prefix="scan_pattern.options")
+        return cls(opts, sensor)
+
+    @property
+    def rate_hz(self) -> float:
+        """Rays emitted per second."""
+        return self.sensor.point_rate_hz
+
+    def index_range(self, t_start: float, t_stop: float) -> tuple[int, int]:
+        """Indices ``[k0, k1)`` of rays emitted in ``[t_start, t_stop)``."""
+        def first_at_or_after(t: float) -> int:
+            # round before ceil so that t * rate landing a hair above an integer is exact
+            return max(0, math.ceil(round(t * self.rate_hz, 6)))
+
+        return first_at_or_after(t_start), first_at_or_after(t_stop)
+
+    def time_of_index(self, index: np.ndarray) -> np.ndarray:
+        """Emission time (s) of global ray ``index``."""
+        return np.asarray(index, dtype=np.float64) / self.rate_hz
+
+    def rays(self, t_start: float, t_stop: float) -> RayBatch:
+        """All rays emitted in ``[t_start, t_stop)`` seconds from scan start."""
+        k0, k1 = self.index_range(t_start, t_stop)
+        return self.rays_for_indices(np.arange(k0, k1, dtype=np.int64))
+
+    @abstractmethod
+    def rays_for_indices(self, index: np.ndarray) -> RayBatch:
+        """The rays with global indices ``index`` ((N,) int64, non-negative)."""
+
+    def max_off_axis_rad(self) -> float:
+        """Largest angle from the boresight any ray can have (for FOV checks)."""
+        return math.hypot(self.sensor.half_fov_h_rad, self.sensor.half_fov_v_rad)
+
+    def inside_fov(self, directions: np.ndarray, tol_rad: float = 1e-9) -> np.ndarray:
+        """Whether each direction lies inside the datasheet FOV (shape-aware)."""
+        sheet = self.sensor
+        if sheet.fov_type == "circular":
+            return off_axis_angle(directions) <= sheet.half_fov_h_rad + tol_rad
+        from .geometry import az_el_from_directions
+
+        az, el = az_el_from_directions(directions)
+        el_ok = np.abs(el - math.radians(sheet.fov_v_center_deg)) <= sheet.half_fov_v_rad + tol_rad
+        if sheet.fov_type == "panoramic" and sheet.fov_h_deg >= 360:
+            return el_ok
+        return el_ok & (np.abs(az) <= sheet.half_fov_h_rad + tol_rad)

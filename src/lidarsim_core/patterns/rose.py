@@ -1,0 +1,84 @@
+"""Built-in plugin: the seed paper's rose (petal) pattern, r = A·sin(B·φ).
+
+The paper models the Livox MID-70's non-repetitive petal scan with the polar rose of its
+Eq. 1. Here ``r`` is the off-axis angle of the ray (so a circular FOV of half-angle A is filled
+exactly) and ``φ`` is the roll angle about the boresight. ``φ`` advances uniformly in time,
+one full turn (2π) every ``turn_period_s``; after each full turn the whole rosette is rotated
+about the boresight by ``rotation_per_turn_deg`` (paper: 5°), so successive rosettes fill the
+FOV.
+
+Petal count: for integer B the classic rose has B petals when B is odd (each traced twice per
+turn) and 2B petals when B is even (each traced once).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from pydantic import Field
+
+from ..components import ComponentOptions
+from ..hookspecs import hookimpl
+from .base import RayBatch, ScanPattern
+from .geometry import directions_from_off_axis
+
+
+class RoseOptions(ComponentOptions):
+    """Options of the rose pattern."""
+
+    b: int = Field(4, ge=1, le=1000, description="B of r = A·sin(B·φ) (integer).")
+    a_deg: float | None = Field(
+        None, gt=0, lt=90, description="A of Eq. 1 as an off-axis angle (deg); default: half "
+                                       "the datasheet's horizontal FOV.")
+    turn_period_s: float = Field(0.04014, gt=0,
+                                 description="Time for φ to make one full turn (s).")
+    rotation_per_turn_deg: float = Field(5.0, description="Rotation of the rosette after each "
+                                                          "full turn (deg; paper: 5).")
+    phase_deg: float = Field(0.0, description="Rotation of the first rosette (deg).")
+
+
+class RosePattern(ScanPattern):
+    """Polar rose r = A·sin(B·φ), rotated after every turn (seed paper, Eq. 1)."""
+
+    name = "rose"
+    Options = RoseOptions
+    options: RoseOptions
+
+    @property
+    def amplitude_rad(self) -> float:
+        """A in radians."""
+        a_deg = self.options.a_deg
+        return math.radians(a_deg) if a_deg is not None else self.sensor.half_fov_h_rad
+
+    @property
+    def petals_per_turn(self) -> int:
+        """Distinct petals drawn in one turn of φ."""
+        b = self.options.b
+        return b if b % 2 else 2 * b
+
+    def phi_and_turn(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """φ (rad, within the current turn) and the turn number at times ``t``."""
+        turns = np.asarray(t, dtype=np.float64) / self.options.turn_period_s
+        turn_number = np.floor(turns)
+        return 2.0 * np.pi * (turns - turn_number), turn_number.astype(np.int64)
+
+    def rays_for_indices(self, index: np.ndarray) -> RayBatch:
+        index = np.asarray(index, dtype=np.int64)
+        t = self.time_of_index(index)
+        phi, turn = self.phi_and_turn(t)
+        r = self.amplitude_rad * np.sin(self.options.b * phi)
+        roll = phi + np.radians(self.options.phase_deg + self.options.rotation_per_turn_deg * turn)
+        # a negative r is the point on the opposite side: (|r|, roll + π)
+        direction = directions_from_off_axis(np.abs(r), roll + np.where(r < 0, np.pi, 0.0))
+        return RayBatch(index, t, direction, np.zeros(len(index), dtype=np.int16))
+
+    def max_off_axis_rad(self) -> float:
+        return self.amplitude_rad
+
+
+@hookimpl
+def lidarsim_register_scan_patterns(register: Any) -> None:
+    """Register the rose pattern."""
+    register(RosePattern)

@@ -1,0 +1,212 @@
+"""Scenario files: what to simulate, validated by pydantic and loaded from YAML/TOML/JSON.
+
+A minimal scenario (YAML)::
+
+    seed: 7
+    sensor:
+      datasheet: livox-mid70-rose          # catalogue name, a datasheet file, or an inline mapping
+      pose: {position_m: [0, 0, 0]}
+    targets:
+      - name: envisat
+        mesh: {model: envisat, options: {detail: medium}}   # or {path: envisat.stl, scale: 1.0}
+        pose: {position_m: [40, 0, 0], euler_deg: [0, 0, 30]}
+    scan: {duration_s: 1.0}
+    backend: {name: auto}                  # auto | numpy | embree | any installed backend
+    noise: [{name: angular}, {name: range}]   # omit for the datasheet's errors; [] for none
+
+Relative mesh and datasheet paths are resolved against the scenario file's directory.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, field_validator, model_validator
+
+from .config_io import read_config_file, validate_model
+from .poses import PoseConfig
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class NamedComponent(_Strict):
+    """A plugin component chosen by name, with its options."""
+
+    name: str = Field(description="Registered name of the component.")
+    options: dict[str, Any] = Field(default_factory=dict, description="Component options.")
+
+
+class TrajectoryConfig(BaseModel):
+    """A trajectory plugin by ``kind`` with its options inline (validated by that plugin)."""
+
+    model_config = ConfigDict(extra="allow")
+
+    kind: str = Field(description="Registered trajectory name, e.g. 'static'.")
+
+    def plugin_options(self) -> dict[str, Any]:
+        """The options for the trajectory plugin (everything but ``kind``)."""
+        return dict(self.model_extra or {})
+
+
+class _Posed(_Strict):
+    pose: PoseConfig | None = Field(None, description="A fixed pose (body → scene).")
+    trajectory: TrajectoryConfig | None = Field(None, description="A time-varying pose.")
+
+    @model_validator(mode="after")
+    def _one_of_pose_trajectory(self) -> Any:
+        if self.pose is not None and self.trajectory is not None:
+            raise ValueError("give either 'pose' or 'trajectory', not both")
+        return self
+
+    def trajectory_config(self) -> TrajectoryConfig:
+        """The trajectory, turning a plain ``pose`` into a static trajectory."""
+        if self.trajectory is not None:
+            return self.trajectory
+        pose = self.pose or PoseConfig()
+        return TrajectoryConfig(kind="static", **pose.model_dump(exclude_defaults=True))
+
+
+class SensorConfig(_Posed):
+    """The LiDAR: its datasheet, optional pattern overrides, and its pose or trajectory."""
+
+    datasheet: str | dict[str, Any] = Field(
+        description="Catalogue name (see `lidarsim sensors`), path to a datasheet file, or an "
+                    "inline datasheet mapping.")
+    pattern_options: dict[str, Any] = Field(
+        default_factory=dict, description="Overrides of the datasheet's scan_pattern.options.")
+
+
+class MeshConfig(_Strict):
+    """Where a target's triangles come from: a file, or a registered procedural model."""
+
+    path: Path | None = Field(None, description="Mesh file (STL, OBJ, PLY, GLB, ...).")
+    model: str | None = Field(None, description="Registered target model, e.g. 'envisat'.")
+    options: dict[str, Any] = Field(default_factory=dict, description="Model options.")
+    scale: float = Field(1.0, gt=0, description="Factor applied to file coordinates.")
+
+    @model_validator(mode="after")
+    def _one_source(self) -> "MeshConfig":
+        if (self.path is None) == (self.model is None):
+            raise ValueError("give exactly one of 'path' or 'model'")
+        if self.path is not None and self.options:
+            raise ValueError("'options' apply to a 'model', not to a mesh file")
+        return self
+
+
+class TargetConfig(_Posed):
+    """One target: a labelled mesh and its pose or trajectory."""
+
+    name: str = Field(min_length=1, description="Label written into the point record.")
+    mesh: MeshConfig
+
+
+class ScanConfig(_Strict):
+    """Timing of the scan: one frame, or a sequence of frames."""
+
+    duration_s: float = Field(gt=0, description="Integration time of one frame (s).")
+    start_s: float = Field(0.0, ge=0, description="Start of frame 0 after the epoch (s).")
+    frames: int = Field(1, ge=1, description="Number of frames.")
+    frame_period_s: float | None = Field(
+        None, gt=0, description="Time between frame starts (s); default: duration_s.")
+    motion: Literal["per_ray", "frozen"] = Field(
+        "per_ray", description="'per_ray': every ray sees the poses at its own timestamp "
+                               "(motion distortion); 'frozen': poses at frame start.")
+
+    @property
+    def period_s(self) -> float:
+        """Time between frame starts (s)."""
+        return self.frame_period_s or self.duration_s
+
+    def frame_interval(self, frame: int) -> tuple[float, float]:
+        """``(t_start, t_stop)`` of ``frame`` in seconds from the epoch."""
+        t0 = self.start_s + frame * self.period_s
+        return t0, t0 + self.duration_s
+
+
+class Scenario(_Strict):
+    """A complete simulation set-up."""
+
+    seed: int = Field(0, ge=0, description="Seed of every random number (noise).")
+    sensor: SensorConfig
+    targets: list[TargetConfig] = Field(min_length=1)
+    scan: ScanConfig
+    backend: NamedComponent = Field(default_factory=lambda: NamedComponent(name="auto"),
+                                    description="Ray backend; 'auto' = embree if installed, "
+                                                "else numpy.")
+    noise: list[NamedComponent] | None = Field(
+        None, description="Noise chain in order; default: the datasheet's angular and range "
+                          "errors; [] for a noiseless run.")
+    chunk_rays: int = Field(131072, ge=1, description="Rays processed per chunk (memory bound).")
+
+    _source: Path | None = PrivateAttr(None)
+
+    @field_validator("backend", mode="before")
+    @classmethod
+    def _backend_shorthand(cls, value: Any) -> Any:
+        return {"name": value} if isinstance(value, str) else value
+
+    @field_validator("noise", mode="before")
+    @classmethod
+    def _noise_shorthand(cls, value: Any) -> Any:
+        if isinstance(value, list):
+            return [{"name": v} if isinstance(v, str) else v for v in value]
+        return value
+
+    @model_validator(mode="after")
+    def _unique_target_names(self) -> "Scenario":
+        names = [t.name for t in self.targets]
+        dup = {n for n in names if names.count(n) > 1}
+        if dup:
+            raise ValueError(f"target names must be unique; repeated: {sorted(dup)}")
+        return self
+
+    @property
+    def source(self) -> str:
+        """The file this scenario came from, or ``"<scenario>"``."""
+        return str(self._source) if self._source else "<scenario>"
+
+    @property
+    def base_dir(self) -> Path:
+        """Directory relative paths are resolved against."""
+        return self._source.parent if self._source else Path.cwd()
+
+    def resolve(self, path: Path) -> Path:
+        """``path`` made absolute against :attr:`base_dir`."""
+        return path if path.is_absolute() else self.base_dir / path
+
+    def config_hash(self) -> str:
+        """SHA-256 of the canonical JSON of the validated scenario (first 16 hex digits)."""
+        canon = json.dumps(self.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))
+        return hashlib.sha256(canon.encode("utf-8")).hexdigest()[:16]
+
+    def with_updates(self, **changes: Any) -> "Scenario":
+        """A validated copy with top-level fields replaced (keeps the source file)."""
+        data = self.model_dump()
+        data.update(changes)
+        new = type(self).model_validate(data)
+        new._source = self._source
+        return new
+
+
+def scenario_from_dict(data: dict[str, Any], *, source: str | Path | None = None) -> Scenario:
+    """Validate a mapping as a :class:`Scenario` (errors name ``source`` and the field)."""
+    scenario = validate_model(Scenario, data, source=source or "<scenario>")
+    if source is not None and Path(str(source)).suffix:
+        scenario._source = Path(source).resolve()
+    return scenario
+
+
+def load_scenario(path: str | Path) -> Scenario:
+    """Read and validate a scenario file (YAML, TOML or JSON).
+
+    Raises
+    ------
+    ConfigError
+        One line naming the file and the field when the file is malformed or invalid.
+    """
+    return scenario_from_dict(read_config_file(path), source=path)
