@@ -10,14 +10,31 @@ from typing import Any
 
 from .scenario import Scenario, scenario_from_dict
 
-#: Distance from the sensor to Envisat's body origin in the demo (m).
-DEMO_RANGE_M = 35.0
+#: Distance from the sensor to the centre of Envisat's bounding box in the demo (m).
+DEMO_RANGE_M = 30.0
+#: Centre of the Envisat model's bounding box in its body frame (m), aimed at the boresight.
+_ENVISAT_BOX_CENTRE_M = (8.0, 3.3, -0.17)
+
+
+def demo_target_pose() -> dict[str, Any]:
+    """The demo's Envisat pose: long axis across the view (scene +Y), nadir face and solar
+    array turned toward the sensor, then yawed 35° and pitched 20° so three sides show."""
+    import numpy as np
+    from scipy.spatial.transform import Rotation
+
+    # body X -> scene +Y, body Z (nadir, array normal) -> scene -X (toward the sensor)
+    facing = Rotation.from_matrix(np.array([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0],
+                                            [0.0, -1.0, 0.0]]))
+    rotation = Rotation.from_euler("zy", [35.0, -20.0], degrees=True) * facing
+    position = np.array([DEMO_RANGE_M, 0.0, 0.0]) - rotation.apply(_ENVISAT_BOX_CENTRE_M)
+    return {"position_m": [round(float(v), 6) for v in position],
+            "quaternion_xyzw": [round(float(v), 9) for v in rotation.as_quat()]}
 
 
 def demo_scenario(*, duration_s: float = 1.0, noise: bool = True, detail: str = "medium",
                   backend: str = "auto", seed: int = 2024,
                   sensor: str = "livox-mid70-rose") -> Scenario:
-    """The demo scenario: Envisat 35 m in front of the sensor, seen obliquely.
+    """The demo scenario: Envisat 30 m in front of the sensor, seen obliquely.
 
     Parameters
     ----------
@@ -40,9 +57,7 @@ def demo_scenario(*, duration_s: float = 1.0, noise: bool = True, detail: str = 
         "targets": [{
             "name": "envisat",
             "mesh": {"model": "envisat", "options": {"detail": detail}},
-            # long axis across the view, turned and tilted so three faces are visible
-            "pose": {"position_m": [DEMO_RANGE_M, 0.0, 0.0], "euler_deg": [-20.0, 15.0, 60.0],
-                     "euler_sequence": "xyz"},
+            "pose": demo_target_pose(),
         }],
         "scan": {"duration_s": duration_s},
         "backend": {"name": backend},

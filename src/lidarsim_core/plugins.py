@@ -1,7 +1,7 @@
 """The plugin manager: built-ins, entry-point plugins and explicitly named modules.
 
 Built-in components are registered through the very same hooks as third-party ones, by importing
-the modules listed in :data:`BUILTIN_PLUGINS`, so a plain checkout works without installed
+the modules listed by :func:`builtin_plugin_modules`, so a plain checkout works without installed
 metadata. Third-party plugins come from the ``lidarsim`` entry-point group and are loaded one at a
 time: a plugin that fails to import becomes a :class:`PluginLoadWarning` naming its distribution.
 
@@ -37,18 +37,21 @@ from .registry import KINDS, Registry
 ENTRY_POINT_GROUP = "lidarsim"
 BUILTIN_PROVIDER = f"lidarsim-core {__version__} (built-in)"
 
-#: Modules that provide the built-in components; imported (cheaply) when the registry is built.
-BUILTIN_PLUGINS: tuple[str, ...] = (
-    "lidarsim_core.builtin_sensors",
-    "lidarsim_core.patterns.rose",
-    "lidarsim_core.noise.gaussian",
-    "lidarsim_core.backends.numpy_backend",
-    "lidarsim_core.backends.embree_backend",
-    "lidarsim_core.io.ply",
-    "lidarsim_core.io.npz",
-    "lidarsim_core.models.builtin",
-    "lidarsim_core.trajectories.static",
+#: Subpackages whose ``BUILTIN_MODULES`` tuples list the modules that provide the built-in
+#: components. Each module is imported (cheaply) and registered when the registry is built.
+BUILTIN_PACKAGES: tuple[str, ...] = (
+    "lidarsim_core.patterns", "lidarsim_core.noise", "lidarsim_core.backends",
+    "lidarsim_core.io", "lidarsim_core.models", "lidarsim_core.trajectories",
 )
+
+
+def builtin_plugin_modules() -> list[str]:
+    """Every built-in plugin module, in registration order."""
+    modules = ["lidarsim_core.builtin_sensors"]
+    for package in BUILTIN_PACKAGES:
+        pkg = importlib.import_module(package)
+        modules += [f"{package}.{name}" for name in pkg.BUILTIN_MODULES]
+    return modules
 
 
 class PluginLoadWarning(UserWarning):
@@ -121,7 +124,7 @@ class PluginManager(pluggy.PluginManager):
 def build_plugin_manager() -> PluginManager:
     """A manager with the built-ins, the entry-point plugins and ``LIDARSIM_PLUGINS`` modules."""
     pm = PluginManager()
-    for modname in BUILTIN_PLUGINS:
+    for modname in builtin_plugin_modules():
         pm.register_plugin(importlib.import_module(modname), modname, BUILTIN_PROVIDER)
     pm.load_entry_points()
     pm.load_named_modules(_env_list("LIDARSIM_PLUGINS"))

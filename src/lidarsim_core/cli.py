@@ -1,0 +1,305 @@
+"""The ``lidarsim`` command line.
+
+User errors (bad files, fields, names, paths) print one line and exit with code 2; other
+failures print one line and exit with code 1. ``--debug`` shows the traceback instead.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any, Callable, Optional
+
+import typer
+
+from .errors import LidarsimError, UserInputError
+
+app = typer.Typer(add_completion=False, no_args_is_help=True, pretty_exceptions_enable=False,
+                  help="LiDAR point-cloud simulator for space in-orbit close-range operations.")
+schema_app = typer.Typer(no_args_is_help=True, help="Print JSON schemas of the input files.")
+app.add_typer(schema_app, name="schema")
+
+_state = {"debug": False}
+
+
+@app.callback()
+def _root(debug: bool = typer.Option(False, "--debug", help="Show tracebacks on errors."),
+          version: bool = typer.Option(False, "--version", help="Print the version and exit.")
+          ) -> None:
+    _state["debug"] = debug
+    if version:
+        from ._version import __version__
+
+        typer.echo(f"lidarsim-core {__version__}")
+        raise typer.Exit()
+
+
+def _console(stderr: bool = False):
+    from rich.console import Console
+
+    return Console(stderr=stderr, highlight=False)
+
+
+def _fail(message: str, code: int) -> None:
+    _console(stderr=True).print(f"[bold red]error:[/] {message}", soft_wrap=True)
+    raise typer.Exit(code)
+
+
+def run_guarded(func: Callable[[], Any]) -> Any:
+    """Run a command body, turning lidarsim errors into one line and an exit code."""
+    try:
+        return func()
+    except typer.Exit:
+        raise
+    except UserInputError as exc:
+        if _state["debug"]:
+            raise
+        _fail(str(exc), 2)
+    except LidarsimError as exc:
+        if _state["debug"]:
+            raise
+        _fail(str(exc), 1)
+    except KeyboardInterrupt:
+        _fail("interrupted; no partial output was kept", 130)
+    except Exception as exc:  # an unexpected bug: short line unless --debug
+        if _state["debug"]:
+            raise
+        _fail(f"internal error: {type(exc).__name__}: {exc} (rerun with --debug for the "
+              "traceback)", 1)
+
+
+# ---- demo -------------------------------------------------------------------------------
+@app.command()
+def demo(out: Path = typer.Option(Path("demo-out"), "--out", "-o", help="Output directory."),
+         duration: float = typer.Option(1.0, help="Scan time in seconds (paper: 1 s)."),
+         backend: str = typer.Option("auto", help="Ray backend: auto, numpy, embree, ..."),
+         detail: str = typer.Option("medium", help="Envisat detail: coarse, medium, fine."),
+         seed: int = typer.Option(2024, help="Noise seed.")) -> None:
+    """The seed paper's experiment: Envisat scanned by a Livox MID-70, with and without errors."""
+    run_guarded(lambda: _demo(out, duration, backend, detail, seed))
+
+
+def _demo(out: Path, duration: float, backend: str, detail: str, seed: int) -> None:
+    import yaml
+
+    from .demo import demo_scenario
+    from .errors import OutputError
+    from .simulate import Simulation
+
+    if out.exists() and not out.is_dir():
+        raise OutputError("--out must be a directory", source=out)
+    out.mkdir(parents=True, exist_ok=True)
+    started = time.perf_counter()
+    results = {}
+    for label, noisy in (("with_errors", True), ("without_errors", False)):
+        scenario = demo_scenario(duration_s=duration, noise=noisy, detail=detail,
+                                 backend=backend, seed=seed)
+        sim = Simulation(scenario)
+        sim.backend.prepared(sim.targets[0].mesh)  # build the BVH outside the timed cast
+        t0 = time.perf_counter()
+        cloud = sim.run_frame(0)
+        elapsed = time.perf_counter() - t0
+        cloud.save(out / f"envisat_mid70_{label}.ply")
+        cloud.save(out / f"envisat_mid70_{label}.npz")
+        results[label] = (cloud, elapsed, scenario)
+    scenario = results["with_errors"][2]
+    scenario_text = yaml.safe_dump(scenario.model_dump(mode="json"), sort_keys=False)
+    from .io.base import atomic_output
+
+    with atomic_output(out / "scenario.yaml") as stream:
+        stream.write(scenario_text.encode("utf-8"))
+    _print_demo_summary(out, results, time.perf_counter() - started)
+
+
+def _print_demo_summary(out: Path, results: dict[str, Any], wall: float) -> None:
+    import numpy as np
+    from rich.table import Table
+
+    noisy, t_noisy, scenario = results["with_errors"]
+    clean, t_clean, _ = results["without_errors"]
+    console = _console()
+    frame = noisy.frame
+    console.print(f"[bold]lidarsim demo[/]: {frame.sensor} scanning Envisat for "
+                  f"{frame.t_end - frame.t_start:g} s, backend [bold]{frame.backend}[/], seed "
+                  f"{frame.seed}")
+    table = Table(title=None, show_edge=False)
+    for col in ("run", "rays", "points", "hit %", "range m", "sim s", "rays/s"):
+        table.add_column(col, justify="right" if col != "run" else "left")
+    for label, (cloud, elapsed, _) in results.items():
+        rays = cloud.frame.rays_emitted
+        rng = cloud["range_true"]
+        span = f"{rng.min():.1f}–{rng.max():.1f}" if len(cloud) else "-"
+        table.add_row(label.replace("_", " "), f"{rays:,}", f"{len(cloud):,}",
+                      f"{100 * len(cloud) / max(rays, 1):.1f}", span, f"{elapsed:.2f}",
+                      f"{rays / elapsed:,.0f}")
+    console.print(table)
+    if len(noisy):
+        err = noisy["range"] - noisy["range_true"]
+        console.print(f"range error: mean {1000 * err.mean():+.2f} mm, σ {1000 * err.std():.2f} mm "
+                      "(datasheet 20 mm)")
+    parts = Table(show_edge=False)
+    parts.add_column("part")
+    parts.add_column("points", justify="right")
+    for name, count in sorted(noisy.summary().get("points_per_part", {}).items(),
+                              key=lambda kv: -kv[1]):
+        parts.add_row(name, f"{count:,}")
+    console.print(parts)
+    files = sorted(p.name for p in out.iterdir() if not p.name.startswith("."))
+    console.print(f"wrote {len(files)} files to {out}/: {', '.join(files)}")
+    console.print(f"total wall time {wall:.2f} s")
+    del np
+
+
+# ---- simulate ----------------------------------------------------------------------------
+@app.command()
+def simulate(scenario: Path = typer.Argument(..., help="Scenario file (YAML, TOML or JSON)."),
+             out: Path = typer.Option(..., "--out", "-o",
+                                      help="Output file; the suffix picks the format (.ply, "
+                                           ".npz). With several frames, put '{frame}' in the "
+                                           "name, e.g. cloud_{frame:04d}.ply."),
+             frame: Optional[int] = typer.Option(None, help="Only this frame (default: all)."),
+             fmt: Optional[str] = typer.Option(None, "--format", help="Exporter name."),
+             overwrite: bool = typer.Option(False, help="Replace existing output files."),
+             backend: Optional[str] = typer.Option(None, help="Override the scenario's backend."),
+             seed: Optional[int] = typer.Option(None, help="Override the scenario's seed."),
+             ) -> None:
+    """Simulate a scenario file and write the point cloud(s)."""
+    run_guarded(lambda: _simulate(scenario, out, frame, fmt, overwrite, backend, seed))
+
+
+def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwrite: bool,
+              backend: str | None, seed: int | None) -> None:
+    from .errors import OutputError
+    from .io.base import exporter_for
+    from .scenario import load_scenario
+    from .simulate import Simulation
+
+    scenario = load_scenario(path)
+    changes: dict[str, Any] = {}
+    if backend is not None:
+        changes["backend"] = {"name": backend}
+    if seed is not None:
+        changes["seed"] = seed
+    if changes:
+        scenario = scenario.with_updates(**changes)
+    frames = [frame] if frame is not None else list(range(scenario.scan.frames))
+    templated = "{frame" in str(out)
+    if len(frames) > 1 and not templated:
+        raise OutputError(f"the scenario has {len(frames)} frames: put '{{frame}}' in --out "
+                          "(e.g. cloud_{frame:04d}.ply) or choose one with --frame", source=out)
+    targets = [Path(str(out).format(frame=f)) if templated else out for f in frames]
+    exporter_for(targets[0], fmt)  # unknown format: fail before simulating
+    for target in targets:
+        if target.exists() and not overwrite:
+            raise OutputError("output file exists (use --overwrite to replace it)", source=target)
+        if not target.parent.is_dir():
+            raise OutputError(f"output directory does not exist: {target.parent}", source=target)
+    sim = Simulation(scenario)
+    console = _console()
+    for f, target in zip(frames, targets):
+        t0 = time.perf_counter()
+        cloud = sim.run_frame(f)
+        cloud.save(target, format=fmt, overwrite=overwrite)
+        console.print(f"frame {f}: {len(cloud):,} points from {cloud.frame.rays_emitted:,} rays "
+                      f"in {time.perf_counter() - t0:.2f} s → {target}")
+
+
+# ---- listings ----------------------------------------------------------------------------
+@app.command()
+def sensors(as_json: bool = typer.Option(False, "--json", help="Print JSON.")) -> None:
+    """List the sensor datasheets in the catalogue (built-in and from plugins)."""
+    run_guarded(lambda: _sensors(as_json))
+
+
+def _sensors(as_json: bool) -> None:
+    from rich.table import Table
+
+    from .plugins import get_registry
+
+    entries = list(get_registry().iter("sensor"))
+    if as_json:
+        typer.echo(json.dumps([{**e.obj.model_dump(mode="json"), "provider": e.provider}
+                               for e in entries], indent=2))
+        return
+    table = Table(show_edge=False)
+    for col in ("name", "sensor", "FOV", "range m", "points/s", "σ range", "σ angle",
+                "pattern", "provider"):
+        table.add_column(col)
+    for e in entries:
+        s = e.obj
+        fov = f"{s.fov_h_deg:g}° {s.fov_type}" if s.fov_type == "circular" else \
+            f"{s.fov_h_deg:g}°×{s.fov_v_deg:g}°"
+        table.add_row(s.name, f"{s.manufacturer} {s.model}", fov,
+                      f"{s.range_min_m:g}–{s.range_max_m:g}", f"{s.point_rate_hz:,.0f}",
+                      f"{100 * s.range_precision_m:g} cm", f"{s.angular_precision_deg:g}°",
+                      s.scan_pattern.name, e.provider)
+    _console().print(table)
+
+
+@app.command()
+def plugins(as_json: bool = typer.Option(False, "--json", help="Print JSON.")) -> None:
+    """List every registered component with the distribution that provides it."""
+    run_guarded(lambda: _plugins(as_json))
+
+
+def _plugins(as_json: bool) -> None:
+    from rich.table import Table
+
+    from .plugins import get_registry
+    from .registry import KINDS
+
+    registry = get_registry()
+    rows = []
+    for kind in KINDS:
+        for e in registry.iter(kind):
+            summary = e.obj.description.split("\n")[0] if kind == "sensor" else e.obj.summary()
+            rows.append({"kind": kind, "name": e.name, "provider": e.provider,
+                         "summary": summary.strip()})
+    if as_json:
+        typer.echo(json.dumps(rows, indent=2))
+        return
+    table = Table(show_edge=False)
+    for col in ("kind", "name", "provider", "summary"):
+        table.add_column(col)
+    for row in rows:
+        table.add_row(*row.values())
+    _console().print(table)
+
+
+@schema_app.command("sensor")
+def schema_sensor() -> None:
+    """JSON schema of a sensor datasheet."""
+    from .datasheet import datasheet_json_schema
+
+    typer.echo(json.dumps(datasheet_json_schema(), indent=2))
+
+
+@schema_app.command("scenario")
+def schema_scenario() -> None:
+    """JSON schema of a scenario file."""
+    from .scenario import Scenario
+
+    typer.echo(json.dumps(Scenario.model_json_schema(), indent=2))
+
+
+#: Modules that add further commands to :data:`app` when imported (one module per command group).
+COMMAND_MODULES: tuple[str, ...] = ()
+
+
+def _load_command_modules() -> None:
+    from importlib import import_module
+
+    for name in COMMAND_MODULES:
+        import_module(f"{__package__}.{name}")
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Console-script entry point."""
+    _load_command_modules()
+    app(args=argv, prog_name="lidarsim")
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
