@@ -42,11 +42,11 @@ _SAH_TRAVERSAL_COST = 2.0
 _SAH_TRIANGLE_COST = 1.0
 _SAH_BINS = 16
 
-_DEFAULT_CHUNK = 65536
+_DEFAULT_CHUNK = 32768
 
 # Rows of the per-triangle SoA table used by the leaf test.
 _V0 = slice(0, 3)
-_E1 = slice(3, 6)  # v0 - v1 (note the sign, see _triangle_hits)
+_E1 = slice(3, 6)  # v0 - v1 (note the sign, see _triangle_test)
 _E2 = slice(6, 9)  # v2 - v0
 _N = slice(9, 12)  # (v1 - v0) x (v2 - v0), unnormalised
 _PAR = 12  # parallel threshold: _PARALLEL_COS * |n|
@@ -262,141 +262,206 @@ class TriangleBVH:
         with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
             for lo in range(0, n, int(chunk_size)):
                 hi = min(lo + int(chunk_size), n)
-                t, f = self._traverse(origins[lo:hi].T, directions[lo:hi].T, t_min, t_max)
-                hit = f >= 0
-                dist[lo:hi][hit] = t[hit]
-                face[lo:hi][hit] = f[hit]
+                batch = _RayBatch(origins[lo:hi], directions[lo:hi], t_min, t_max, self.depth)
+                _Traversal(self, batch).run()
+                hit = batch.face != _NO_FACE
+                dist[lo:hi][hit] = batch.t_best[hit]
+                face[lo:hi][hit] = batch.face[hit]
         normal = np.full((n, 3), np.nan)
         hit = face >= 0
         normal[hit] = self._face_normals[face[hit]]
         return dist, face, normal
 
-    def _traverse(
-        self, org: np.ndarray, dirs: np.ndarray, t_min: float, t_max: float
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Traverse one chunk of rays given as ``(3, n)`` arrays.
 
-        Returns the best distance and the hit face index (-1 on miss).
-        """
-        n = org.shape[1]
-        org = np.ascontiguousarray(org)
-        dirs = np.ascontiguousarray(dirs)
-        inv = 1.0 / dirs
-        t_best = np.full(n, t_max)
-        # Hit face id; int64 max stands for "none yet" so the "lower face id
-        # wins" tie rule needs no special case before the first hit.
-        best = np.full(n, np.iinfo(np.int64).max, dtype=np.int64)
+# ---------------------------------------------------------------- traversal
+#
+# Everything in the hot loop is a 1-D contiguous array accessed with np.take /
+# np.put and updated in place where possible: 2-D fancy indexing and boolean
+# masks are several times slower in NumPy than these primitives.
 
-        good = np.isfinite(org).all(0) & np.isfinite(dirs).all(0) & (dirs != 0).any(0)
-        rb = self._root_bounds
-        _, root_hit = _box_hits(
-            rb[0][:, None, None], rb[1][:, None, None], org[:, None, :], inv[:, None, :],
-            t_min, t_best,
-        )
-        act = np.flatnonzero(root_hit[0] & good)
+_NO_FACE = np.iinfo(np.int64).max
 
-        depth = max(self.depth, 1)
-        cur = np.zeros(n, dtype=np.int64)
-        sp = np.zeros(n, dtype=np.int64)
-        stack_node = np.empty(n * depth, dtype=np.int64)
-        stack_t = np.empty(n * depth)
-        alive = np.zeros(n, dtype=bool)
-        alive[act] = True
-        state = (org, dirs, inv, t_min, t_best, best, cur, sp, stack_node, stack_t, depth, alive)
 
+class _RayBatch:
+    """Per-ray traversal state of one chunk of rays.
+
+    ``face`` holds the best face id so far, ``_NO_FACE`` meaning none yet: as
+    the largest int64 it lets the "lower face id wins" tie rule work unchanged
+    before the first hit.  Stacks are level-major (``slot = level * n + ray``)
+    so rays pushing at the same level write close together.
+    """
+
+    def __init__(self, origins, directions, t_min, t_max, depth):
+        n = origins.shape[0]
+        self.n = n
+        self.o = [np.ascontiguousarray(origins[:, k]) for k in range(3)]
+        self.d = [np.ascontiguousarray(directions[:, k]) for k in range(3)]
+        # 1/0 = +-inf is intended; see _box_test for how it is handled.
+        self.inv = [1.0 / dk for dk in self.d]
+        self.t_min = t_min
+        self.t_best = np.full(n, t_max)
+        self.face = np.full(n, _NO_FACE, dtype=np.int64)
+        self.cur = np.zeros(n, dtype=np.int64)
+        self.sp = np.zeros(n, dtype=np.int64)
+        self.stack_node = np.empty(max(depth, 1) * n, dtype=np.int64)
+        self.stack_t = np.empty(max(depth, 1) * n)
+        self.alive = np.zeros(n, dtype=bool)
+
+    def usable(self):
+        """Mask of rays with finite origin and finite, non-zero direction."""
+        ok = np.ones(self.n, dtype=bool)
+        for k in range(3):
+            ok &= np.isfinite(self.o[k]) & np.isfinite(self.d[k])
+        return ok & ((self.d[0] != 0) | (self.d[1] != 0) | (self.d[2] != 0))
+
+
+class _Traversal:
+    """Ordered depth-first traversal of one :class:`_RayBatch`.
+
+    Each iteration moves every active ray by one node: rays on an interior node
+    test both children and descend into the nearer hit child (pushing the other
+    one), rays on a leaf test its triangles; rays with nothing left to visit pop
+    their stack, skipping entries farther than their current best hit.
+    """
+
+    def __init__(self, bvh: TriangleBVH, batch: _RayBatch) -> None:
+        self.bvh = bvh
+        self.b = batch
+
+    def run(self) -> None:
+        """Traverse until every ray has exhausted its stack."""
+        b, bvh = self.b, self.bvh
+        rb = bvh._root_bounds
+        _, hit = _box_test(rb[0], rb[1], b.o, b.inv, b.t_min, b.t_best)
+        act = np.flatnonzero(hit & b.usable())
+        b.alive[act] = True
         while act.size:
-            leaf = self._is_leaf[cur[act]]
-            at_leaf = act[leaf]
-            at_inner = act[~leaf]
-            done_inner = self._inner_step(at_inner, state)
-            self._leaf_step(at_leaf, state)
-            _pop(np.concatenate([done_inner, at_leaf]), state)
-            act = act[alive[act]]
+            leaf = np.take(bvh._is_leaf, np.take(b.cur, act))
+            at_leaf = np.take(act, np.flatnonzero(leaf))
+            at_inner = np.take(act, np.flatnonzero(~leaf))
+            stuck = self._inner_step(at_inner)
+            self._leaf_step(at_leaf)
+            self._pop(np.concatenate([stuck, at_leaf]))
+            act = np.take(act, np.flatnonzero(np.take(b.alive, act)))
 
-        miss = best == np.iinfo(np.int64).max
-        best[miss] = -1
-        return t_best, best
-
-    def _inner_step(self, rays: np.ndarray, state: tuple) -> np.ndarray:
-        """Advance rays sitting on interior nodes; return rays that must pop."""
-        org, _, inv, t_min, t_best, _, cur, sp, stack_node, stack_t, depth, _ = state
+    def _inner_step(self, rays: np.ndarray) -> np.ndarray:
+        """Advance rays on interior nodes; return those where no child is hit."""
+        b, bvh = self.b, self.bvh
         if rays.size == 0:
             return rays
-        node = cur[rays]
-        cb = self._child_bounds[:, node].reshape(2, 3, 2, rays.size)
-        tnear, hit = _box_hits(
-            cb[0], cb[1], org[:, rays][:, None, :], inv[:, rays][:, None, :], t_min, t_best[rays]
-        )
-        h0, h1 = hit[0], hit[1]
-        both = h0 & h1
-        # Visit the nearer child now and push the farther one with its entry
-        # distance, so it can be skipped at pop time if a closer hit turns up.
-        second_nearer = tnear[1] < tnear[0]
-        child = np.where(both, second_nearer, h1)
-        first = self._first_child[node]
-        cur[rays] = first + child
-        if both.any():
-            r = rays[both]
-            far = ~second_nearer[both]
-            slot = r * depth + sp[r]
-            stack_node[slot] = first[both] + far
-            stack_t[slot] = np.where(far, tnear[1][both], tnear[0][both])
-            sp[r] += 1
-        return rays[~(h0 | h1)]
+        node = np.take(b.cur, rays)
+        o = [np.take(ok, rays) for ok in b.o]
+        inv = [np.take(ik, rays) for ik in b.inv]
+        t_best = np.take(b.t_best, rays)
+        cb = bvh._child_bounds
+        lo0 = [np.take(cb[2 * k], node) for k in range(3)]
+        hi0 = [np.take(cb[6 + 2 * k], node) for k in range(3)]
+        lo1 = [np.take(cb[2 * k + 1], node) for k in range(3)]
+        hi1 = [np.take(cb[7 + 2 * k], node) for k in range(3)]
+        tn0, h0 = _box_test(lo0, hi0, o, inv, b.t_min, t_best)
+        tn1, h1 = _box_test(lo1, hi1, o, inv, b.t_min, t_best)
 
-    def _leaf_step(self, rays: np.ndarray, state: tuple) -> None:
-        """Test rays sitting on leaves against the leaf triangles."""
-        org, dirs, _, t_min, t_best, best, cur, *_ = state
+        # Descend into the nearer hit child now; push the farther one with its
+        # entry distance so it can be skipped at pop time if a closer hit turns up.
+        both = h0 & h1
+        second_nearer = tn1 < tn0
+        first = np.take(bvh._first_child, node)
+        np.put(b.cur, rays, first + np.where(both, second_nearer, h1))
+        pushed = np.flatnonzero(both)
+        if pushed.size:
+            r = np.take(rays, pushed)
+            far = ~np.take(second_nearer, pushed)
+            sp = np.take(b.sp, r)
+            slot = sp * b.n + r
+            np.put(b.stack_node, slot, np.take(first, pushed) + far)
+            np.put(b.stack_t, slot, np.where(far, np.take(tn1, pushed), np.take(tn0, pushed)))
+            np.put(b.sp, r, sp + 1)
+        return np.take(rays, np.flatnonzero(~(h0 | h1)))
+
+    def _leaf_step(self, rays: np.ndarray) -> None:
+        """Test rays on leaves against every triangle of their leaf."""
+        b, bvh = self.b, self.bvh
         if rays.size == 0:
             return
-        node = cur[rays]
-        count = self._leaf_count[node]
+        node = np.take(b.cur, rays)
+        count = np.take(bvh._leaf_count, node)
         offsets = np.cumsum(count) - count
         n_pairs = int(offsets[-1] + count[-1])
+        # (ray, triangle) pairs, grouped by ray so reduceat gives per-ray minima.
         pair_ray = np.repeat(np.arange(rays.size), count)
-        tri = np.repeat(self._leaf_start[node] - offsets, count) + np.arange(n_pairs)
-        ray = rays[pair_ray]
-        t = _triangle_hits(self._tri_table[:, tri], org[:, ray], dirs[:, ray], t_min)
+        tri = np.repeat(np.take(bvh._leaf_start, node) - offsets, count)
+        tri += np.arange(n_pairs)
+        ray = np.take(rays, pair_ray)
+        o = [np.take(ok, ray) for ok in b.o]
+        d = [np.take(dk, ray) for dk in b.d]
+        table = [np.take(row, tri) for row in bvh._tri_table]
+        t = _triangle_test(table, o, d, b.t_min)
 
         t_leaf = np.minimum.reduceat(t, offsets)
         # Among the pairs at a ray's minimum distance keep the lowest face id.
-        big = np.iinfo(np.int64).max
-        cand = np.where(t == t_leaf[pair_ray], self._tri_face[tri], big)
+        at_min = t == np.take(t_leaf, pair_ray)
+        cand = np.where(at_min, np.take(bvh._tri_face, tri), _NO_FACE)
         f_leaf = np.minimum.reduceat(cand, offsets)
-        tb = t_best[rays]
-        better = (t_leaf < tb) | ((t_leaf == tb) & (f_leaf < best[rays]))
-        better &= t_leaf < np.inf  # all-miss leaves give t = inf with a real face id
-        r = rays[better]
-        t_best[r] = t_leaf[better]
-        best[r] = f_leaf[better]
+        t_best = np.take(b.t_best, rays)
+        better = (t_leaf < t_best) | ((t_leaf == t_best) & (f_leaf < np.take(b.face, rays)))
+        better &= t_leaf < np.inf  # an all-miss leaf yields t = inf with a real face id
+        win = np.flatnonzero(better)
+        r = np.take(rays, win)
+        np.put(b.t_best, r, np.take(t_leaf, win))
+        np.put(b.face, r, np.take(f_leaf, win))
+
+    def _pop(self, rays: np.ndarray) -> None:
+        """Pop the next stacked node of ``rays``; retire rays whose stack runs out.
+
+        Entries whose box starts beyond the ray's best hit are discarded.
+        """
+        b = self.b
+        while rays.size:
+            sp = np.take(b.sp, rays)
+            empty = sp == 0
+            b.alive[rays[empty]] = False
+            keep = np.flatnonzero(~empty)
+            rays = np.take(rays, keep)
+            sp = np.take(sp, keep) - 1
+            np.put(b.sp, rays, sp)
+            slot = sp * b.n + rays
+            near = np.take(b.stack_t, slot) <= np.take(b.t_best, rays) * _BOX_SLACK
+            ok = np.flatnonzero(near)
+            np.put(b.cur, np.take(rays, ok), np.take(b.stack_node, np.take(slot, ok)))
+            rays = np.take(rays, np.flatnonzero(~near))
 
 
-# ---------------------------------------------------------------- traversal kernels
+def _box_test(lo, hi, o, inv, t_min, t_best):
+    """Slab test of rays against boxes, per-axis 1-D arrays (or scalars).
 
-
-def _box_hits(lo, hi, org, inv, t_min, t_best):
-    """Slab test of rays against boxes.
-
-    ``lo``/``hi`` are ``(3, K, A)`` (or broadcastable) box corners, ``org``/``inv``
-    ``(3, 1, A)`` ray origins and reciprocal directions.  Returns the entry
-    distance (clamped to ``t_min``) and a hit mask, both ``(K, A)``.
+    Returns the entry distance (clamped to ``t_min``) and the hit mask.  A hit
+    needs ``max(entry, t_min) <= min(exit, t_best)`` up to the relative slack
+    ``_BOX_SLACK``.
 
     A zero direction component gives ``inv = +-inf``; when the origin lies exactly
     on that slab plane the product is ``0 * inf = NaN``.  ``minimum``/``maximum``
-    propagate that NaN per axis and ``fmax``/``fmin`` then ignore it, so such an
-    axis imposes no constraint, which is right because the ray runs inside the
-    (closed) slab.
+    propagate that NaN and ``fmax``/``fmin`` then ignore it, so the axis imposes
+    no constraint, which is right because the ray runs inside the closed slab.
     """
-    t0 = (lo - org) * inv
-    t1 = (hi - org) * inv
-    t_lo = np.minimum(t0, t1)
-    t_hi = np.maximum(t0, t1)
-    tnear = np.fmax(np.fmax(t_lo[0], t_lo[1]), np.fmax(t_lo[2], t_min))
-    tfar = np.fmin(np.fmin(t_hi[0], t_hi[1]), np.fmin(t_hi[2], t_best))
-    return tnear, tnear <= tfar * _BOX_SLACK
+    tnear = tfar = None
+    for k in range(3):
+        ta = lo[k] - o[k]
+        ta *= inv[k]
+        tb = hi[k] - o[k]
+        tb *= inv[k]
+        t_lo = np.minimum(ta, tb)
+        t_hi = np.maximum(ta, tb, out=ta)
+        if tnear is None:
+            tnear = np.fmax(t_lo, t_min)
+            tfar = np.fmin(t_hi, t_best)
+        else:
+            np.fmax(tnear, t_lo, out=tnear)
+            np.fmin(tfar, t_hi, out=tfar)
+    tfar *= _BOX_SLACK
+    return tnear, tnear <= tfar
 
 
-def _triangle_hits(tri, org, dirs, t_min):
+def _triangle_test(tri, o, d, t_min):
     """Ray/triangle distances for ``(ray, triangle)`` pairs, ``inf`` on miss.
 
     Moeller-Trumbore in the precomputed-normal form: with ``s = o - v0``,
@@ -405,41 +470,27 @@ def _triangle_hits(tri, org, dirs, t_min):
     and the distance ``t = -(s . n) / den``.  Working relative to ``v0`` keeps
     far-away origins and coordinates accurate in float64.
     """
-    sx = org[0] - tri[0]
-    sy = org[1] - tri[1]
-    sz = org[2] - tri[2]
-    dx, dy, dz = dirs
+    sx = o[0] - tri[0]
+    sy = o[1] - tri[1]
+    sz = o[2] - tri[2]
+    dx, dy, dz = d
     rx = dy * sz - dz * sy
     ry = dz * sx - dx * sz
     rz = dx * sy - dy * sx
     nx, ny, nz = tri[9], tri[10], tri[11]
     den = dx * nx + dy * ny + dz * nz
-    inv_den = 1.0 / den
+    # The minus sign is folded into the reciprocal, so u and v below are the
+    # negated barycentrics and their tests are mirrored accordingly.
+    inv_den = -1.0 / den
+    t = (sx * nx + sy * ny + sz * nz) * inv_den
     u = (tri[6] * rx + tri[7] * ry + tri[8] * rz) * inv_den
     v = (tri[3] * rx + tri[4] * ry + tri[5] * rz) * inv_den
-    t = -(sx * nx + sy * ny + sz * nz) * inv_den
-    ok = (np.abs(den) > tri[_PAR]) & (u >= -_BARY_TOL) & (v >= -_BARY_TOL)
-    ok &= (u + v <= 1.0 + _BARY_TOL) & (t > t_min)
+    ok = np.abs(den) > tri[_PAR]
+    ok &= u <= _BARY_TOL
+    ok &= v <= _BARY_TOL
+    ok &= u + v >= -1.0 - _BARY_TOL
+    ok &= t > t_min
     return np.where(ok, t, np.inf)
-
-
-def _pop(rays, state):
-    """Pop stacked nodes for ``rays``, skipping those beyond the best hit.
-
-    Rays with an exhausted stack are retired (``alive`` cleared).
-    """
-    _, _, _, _, t_best, _, cur, sp, stack_node, stack_t, depth, alive = state
-    while rays.size:
-        s = sp[rays]
-        empty = s == 0
-        alive[rays[empty]] = False
-        rays = rays[~empty]
-        s = s[~empty] - 1
-        sp[rays] = s
-        slot = rays * depth + s
-        keep = stack_t[slot] <= t_best[rays] * _BOX_SLACK
-        cur[rays[keep]] = stack_node[slot[keep]]
-        rays = rays[~keep]
 
 
 # ------------------------------------------------------------------------ build
