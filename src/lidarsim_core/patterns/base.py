@@ -15,6 +15,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from ..components import Component
+from ..errors import UserInputError
 from ..datasheet import SensorDatasheet
 from .geometry import off_axis_angle
 
@@ -80,7 +81,14 @@ class ScanPattern(Component):
         options = {**sensor.scan_pattern.options, **(overrides or {})}
         opts = validate_model(cls.Options, options, source=source,
                               prefix="scan_pattern.options")
-        return cls(opts, sensor)
+        try:
+            return cls(opts, sensor)
+        except UserInputError as exc:
+            if exc.source or source is None:
+                raise
+            # a problem found while building (e.g. in a pattern file): say which scenario
+            raise type(exc)(exc.message, source=source,
+                            field=exc.field or "scan_pattern") from None
 
     @property
     def rate_hz(self) -> float:

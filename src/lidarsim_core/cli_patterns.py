@@ -1,0 +1,122 @@
+"""The ``lidarsim pattern`` and ``lidarsim coverage`` commands: export and assess scan patterns."""
+
+from __future__ import annotations
+
+import io
+import json
+from pathlib import Path
+from typing import Any
+
+import typer
+
+from .cli import app, run_guarded
+
+
+def _console() -> Any:
+    from rich.console import Console
+
+    return Console(highlight=False)
+
+
+def _pattern(sensor: str, options: list[str]) -> Any:
+    """The scan pattern of a catalogue sensor or datasheet file, with ``KEY=VALUE`` overrides."""
+    import yaml
+
+    from .builtin_sensors import get_sensor
+    from .errors import ConfigError
+    from .patterns.coverage import pattern_for
+
+    sheet = get_sensor(sensor, field="SENSOR")
+    overrides: dict[str, Any] = {}
+    for item in options:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip():
+            raise ConfigError(f"--option expects KEY=VALUE, got {item!r}", field="--option")
+        overrides[key.strip()] = yaml.safe_load(value)
+    return pattern_for(sheet, overrides)
+
+
+def _check_positive(value: float, flag: str) -> None:
+    from .errors import ConfigError
+
+    if not value > 0:
+        raise ConfigError(f"{flag} must be > 0, got {value:g}", field=flag)
+
+
+@app.command()
+def pattern(sensor: str = typer.Argument(..., help="Catalogue name or datasheet file."),
+            duration: float = typer.Option(..., "--duration", help="Scan time to export (s)."),
+            out: Path = typer.Option(..., "--out", "-o", help="Output .npz file."),
+            start: float = typer.Option(0.0, "--start", help="Start time (s from scan start)."),
+            option: list[str] = typer.Option([], "--option", help="Pattern option override, "
+                                                                 "KEY=VALUE (repeatable)."),
+            overwrite: bool = typer.Option(False, help="Replace an existing output file."),
+            ) -> None:
+    """Write the rays a sensor emits: t (s), direction (N, 3) in the sensor frame, channel."""
+    run_guarded(lambda: _export(sensor, duration, out, start, option, overwrite))
+
+
+def _export(sensor: str, duration: float, out: Path, start: float, options: list[str],
+            overwrite: bool) -> None:
+    import numpy as np
+
+    from .errors import OutputError
+    from .io.base import atomic_output
+
+    _check_positive(duration, "--duration")
+    if out.suffix.lower() != ".npz":
+        raise OutputError("the ray export is written as .npz; give a file ending in .npz",
+                          source=out)
+    pat = _pattern(sensor, options)
+    batch = pat.rays(start, start + duration)
+    buffer = io.BytesIO()
+    np.savez_compressed(buffer, t=batch.t, direction=batch.direction, channel=batch.channel,
+                        index=batch.index, sensor=np.array(pat.sensor.name),
+                        pattern=np.array(pat.name))
+    with atomic_output(out, overwrite=overwrite) as stream:
+        stream.write(buffer.getvalue())
+    _console().print(f"{pat.sensor.name} ({pat.name}): {len(batch):,} rays in "
+                     f"[{start:g}, {start + duration:g}) s → {out}")
+
+
+@app.command()
+def coverage(sensor: str = typer.Argument(..., help="Catalogue name or datasheet file."),
+             time_s: float = typer.Option(..., "--time", help="Integration time (s)."),
+             cell_deg: float = typer.Option(0.5, "--cell-deg", help="Cell size (deg)."),
+             bin_deg: float = typer.Option(5.0, "--bin-deg",
+                                           help="Off-axis bin width of the density profile."),
+             start: float = typer.Option(0.0, "--start", help="Start time (s)."),
+             option: list[str] = typer.Option([], "--option", help="Pattern option override, "
+                                                                  "KEY=VALUE (repeatable)."),
+             as_json: bool = typer.Option(False, "--json", help="Print JSON."),
+             ) -> None:
+    """Fraction of the FOV hit within an integration time, and density vs off-axis angle."""
+    run_guarded(lambda: _coverage(sensor, time_s, cell_deg, bin_deg, start, option, as_json))
+
+
+def _coverage(sensor: str, time_s: float, cell_deg: float, bin_deg: float, start: float,
+              options: list[str], as_json: bool) -> None:
+    from rich.table import Table
+
+    from .patterns.coverage import fov_coverage
+
+    _check_positive(time_s, "--time")
+    _check_positive(cell_deg, "--cell-deg")
+    _check_positive(bin_deg, "--bin-deg")
+    report = fov_coverage(_pattern(sensor, options), time_s, cell_deg, t_start_s=start,
+                          bin_deg=bin_deg)
+    if as_json:
+        typer.echo(json.dumps(report.to_dict(), indent=2))
+        return
+    console = _console()
+    console.print(f"[bold]{report.sensor}[/] ({report.pattern}): {100 * report.coverage:.1f} % "
+                  f"of {report.cells_in_fov:,} cells of {cell_deg:g}° hit in {time_s:g} s "
+                  f"({report.rays:,} rays; {report.projection} cells)")
+    table = Table(show_edge=False)
+    for col in ("off-axis °", "points", "solid angle deg²", "points/deg²", "points/deg²/s"):
+        table.add_column(col, justify="right")
+    for b in report.density:
+        table.add_row(f"{b.off_axis_lo_deg:g}–{b.off_axis_hi_deg:g}", f"{b.points:,}",
+                      f"{b.solid_angle_deg2:.1f}", f"{b.points_per_deg2:.3g}",
+                      f"{b.points_per_deg2_per_s:.3g}")
+    console.print(table)
