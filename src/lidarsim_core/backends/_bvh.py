@@ -44,6 +44,15 @@ _SAH_BINS = 16
 
 _DEFAULT_CHUNK = 32768
 
+# Upper bound on rays * stack depth per chunk (entries of the per-ray stacks), so
+# an unusually deep tree shrinks the chunk instead of exhausting memory.
+_MAX_STACK_ENTRIES = 1 << 22
+
+# Below this depth the build uses the SAH; deeper nodes (only reached on
+# adversarial inputs such as exponentially spaced triangles) are halved by
+# count, which bounds the tree depth by about this value plus log2(F).
+_SAH_MAX_DEPTH = 64
+
 # Rows of the per-triangle SoA table used by the leaf test.
 _V0 = slice(0, 3)
 _E1 = slice(3, 6)  # v0 - v1 (note the sign, see _triangle_test)
@@ -72,7 +81,9 @@ class TriangleBVH:
     Notes
     -----
     Degenerate (zero-area) and non-finite triangles are dropped at build time and
-    can never be hit.  Backfaces are not culled.
+    can never be hit, as are triangles whose edge cross product overflows float64
+    (coordinates beyond about 1e150).  Backfaces are not culled.  :meth:`intersect` does not
+    modify the tree, so one instance can serve several threads.
     """
 
     def __init__(
@@ -120,9 +131,8 @@ class TriangleBVH:
         faces : numpy.ndarray
             ``(F, 3)`` integer vertex indices per triangle.
         leaf_size : int, optional
-            Maximum number of triangles per leaf (>= 1).  The SAH may stop
-            earlier; leaves only exceed this when splitting is impossible, which
-            cannot happen because a fallback median split is always available.
+            Maximum number of triangles per leaf (>= 1); the SAH cost model
+            usually stops splitting earlier, at about 2 to 4 triangles.
 
         Returns
         -------
@@ -140,27 +150,21 @@ class TriangleBVH:
             raise ValueError(f"leaf_size must be >= 1, got {leaf_size}")
         leaf_size = int(leaf_size)
 
-        p0 = vertices[faces[:, 0]]
-        p1 = vertices[faces[:, 1]]
-        p2 = vertices[faces[:, 2]]
-        e1 = p1 - p0
-        e2 = p2 - p0
-        normal = np.cross(e1, e2)
-        nlen = np.sqrt(np.einsum("ij,ij->i", normal, normal))
-        scale = np.sqrt(np.einsum("ij,ij->i", e1, e1) * np.einsum("ij,ij->i", e2, e2))
-        with np.errstate(invalid="ignore", over="ignore"):
-            usable = (nlen > _DEGENERATE_SIN * scale) & np.isfinite(nlen) & np.isfinite(scale)
-            usable &= np.isfinite(p0).all(1) & np.isfinite(p1).all(1) & np.isfinite(p2).all(1)
-        face_normals = np.full((faces.shape[0], 3), np.nan)
-        face_normals[usable] = normal[usable] / nlen[usable, None]
-
-        ids = np.flatnonzero(usable)
-        if ids.size == 0:
-            return cls._empty(faces.shape[0], face_normals)
-
-        tri_lo = np.minimum(np.minimum(p0[ids], p1[ids]), p2[ids])
-        tri_hi = np.maximum(np.maximum(p0[ids], p1[ids]), p2[ids])
-        tree = _build_tree(tri_lo, tri_hi, leaf_size)
+        # Huge (but finite) coordinates may overflow areas and lengths to inf;
+        # such triangles are dropped or just get a poor split, never a warning.
+        with np.errstate(invalid="ignore", over="ignore", divide="ignore"):
+            p0, e1, e2, normal, nlen, usable = _triangle_geometry(vertices, faces)
+            face_normals = np.full((faces.shape[0], 3), np.nan)
+            face_normals[usable] = normal[usable] / nlen[usable, None]
+            ids = np.flatnonzero(usable)
+            if ids.size == 0:
+                return cls._empty(faces.shape[0], face_normals)
+            # Bounds from the stored vertices themselves (not v0 + edge, which
+            # rounds) so every box exactly contains its triangles.
+            c0, c1, c2 = (vertices.take(faces[ids, j], axis=0) for j in range(3))
+            tri_lo = np.minimum(np.minimum(c0, c1), c2)
+            tri_hi = np.maximum(np.maximum(c0, c1), c2)
+            tree = _build_tree(tri_lo, tri_hi, leaf_size)
         order = ids[tree["perm"]]
 
         tri_table = np.empty((13, order.size))
@@ -259,9 +263,10 @@ class TriangleBVH:
         if n == 0 or self.n_nodes == 0 or t_max < t_min:
             return dist, face, np.full((n, 3), np.nan)
 
+        step = max(1, min(int(chunk_size), _MAX_STACK_ENTRIES // max(self.depth, 1)))
         with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-            for lo in range(0, n, int(chunk_size)):
-                hi = min(lo + int(chunk_size), n)
+            for lo in range(0, n, step):
+                hi = min(lo + step, n)
                 batch = _RayBatch(origins[lo:hi], directions[lo:hi], t_min, t_max, self.depth)
                 _Traversal(self, batch).run()
                 hit = batch.face != _NO_FACE
@@ -275,9 +280,9 @@ class TriangleBVH:
 
 # ---------------------------------------------------------------- traversal
 #
-# Everything in the hot loop is a 1-D contiguous array accessed with np.take /
-# np.put and updated in place where possible: 2-D fancy indexing and boolean
-# masks are several times slower in NumPy than these primitives.
+# Everything in the hot loop is a 1-D contiguous array accessed with the
+# ndarray.take / ndarray.put methods and updated in place where possible: 2-D
+# fancy indexing and boolean-mask indexing are several times slower in NumPy.
 
 _NO_FACE = np.iinfo(np.int64).max
 
@@ -336,28 +341,28 @@ class _Traversal:
         act = np.flatnonzero(hit & b.usable())
         b.alive[act] = True
         while act.size:
-            leaf = np.take(bvh._is_leaf, np.take(b.cur, act))
-            at_leaf = np.take(act, np.flatnonzero(leaf))
-            at_inner = np.take(act, np.flatnonzero(~leaf))
+            leaf = bvh._is_leaf.take(b.cur.take(act))
+            at_leaf = act.take(np.flatnonzero(leaf))
+            at_inner = act.take(np.flatnonzero(~leaf))
             stuck = self._inner_step(at_inner)
             self._leaf_step(at_leaf)
             self._pop(np.concatenate([stuck, at_leaf]))
-            act = np.take(act, np.flatnonzero(np.take(b.alive, act)))
+            act = act.take(np.flatnonzero(b.alive.take(act)))
 
     def _inner_step(self, rays: np.ndarray) -> np.ndarray:
         """Advance rays on interior nodes; return those where no child is hit."""
         b, bvh = self.b, self.bvh
         if rays.size == 0:
             return rays
-        node = np.take(b.cur, rays)
-        o = [np.take(ok, rays) for ok in b.o]
-        inv = [np.take(ik, rays) for ik in b.inv]
-        t_best = np.take(b.t_best, rays)
+        node = b.cur.take(rays)
+        o = [ok.take(rays) for ok in b.o]
+        inv = [ik.take(rays) for ik in b.inv]
+        t_best = b.t_best.take(rays)
         cb = bvh._child_bounds
-        lo0 = [np.take(cb[2 * k], node) for k in range(3)]
-        hi0 = [np.take(cb[6 + 2 * k], node) for k in range(3)]
-        lo1 = [np.take(cb[2 * k + 1], node) for k in range(3)]
-        hi1 = [np.take(cb[7 + 2 * k], node) for k in range(3)]
+        lo0 = [cb[2 * k].take(node) for k in range(3)]
+        hi0 = [cb[6 + 2 * k].take(node) for k in range(3)]
+        lo1 = [cb[2 * k + 1].take(node) for k in range(3)]
+        hi1 = [cb[7 + 2 * k].take(node) for k in range(3)]
         tn0, h0 = _box_test(lo0, hi0, o, inv, b.t_min, t_best)
         tn1, h1 = _box_test(lo1, hi1, o, inv, b.t_min, t_best)
 
@@ -365,50 +370,50 @@ class _Traversal:
         # entry distance so it can be skipped at pop time if a closer hit turns up.
         both = h0 & h1
         second_nearer = tn1 < tn0
-        first = np.take(bvh._first_child, node)
-        np.put(b.cur, rays, first + np.where(both, second_nearer, h1))
+        first = bvh._first_child.take(node)
+        b.cur.put(rays, first + np.where(both, second_nearer, h1))
         pushed = np.flatnonzero(both)
         if pushed.size:
-            r = np.take(rays, pushed)
-            far = ~np.take(second_nearer, pushed)
-            sp = np.take(b.sp, r)
+            r = rays.take(pushed)
+            far = ~second_nearer.take(pushed)
+            sp = b.sp.take(r)
             slot = sp * b.n + r
-            np.put(b.stack_node, slot, np.take(first, pushed) + far)
-            np.put(b.stack_t, slot, np.where(far, np.take(tn1, pushed), np.take(tn0, pushed)))
-            np.put(b.sp, r, sp + 1)
-        return np.take(rays, np.flatnonzero(~(h0 | h1)))
+            b.stack_node.put(slot, first.take(pushed) + far)
+            b.stack_t.put(slot, np.where(far, tn1.take(pushed), tn0.take(pushed)))
+            b.sp.put(r, sp + 1)
+        return rays.take(np.flatnonzero(~(h0 | h1)))
 
     def _leaf_step(self, rays: np.ndarray) -> None:
         """Test rays on leaves against every triangle of their leaf."""
         b, bvh = self.b, self.bvh
         if rays.size == 0:
             return
-        node = np.take(b.cur, rays)
-        count = np.take(bvh._leaf_count, node)
+        node = b.cur.take(rays)
+        count = bvh._leaf_count.take(node)
         offsets = np.cumsum(count) - count
         n_pairs = int(offsets[-1] + count[-1])
         # (ray, triangle) pairs, grouped by ray so reduceat gives per-ray minima.
         pair_ray = np.repeat(np.arange(rays.size), count)
-        tri = np.repeat(np.take(bvh._leaf_start, node) - offsets, count)
+        tri = np.repeat(bvh._leaf_start.take(node) - offsets, count)
         tri += np.arange(n_pairs)
-        ray = np.take(rays, pair_ray)
-        o = [np.take(ok, ray) for ok in b.o]
-        d = [np.take(dk, ray) for dk in b.d]
-        table = [np.take(row, tri) for row in bvh._tri_table]
+        ray = rays.take(pair_ray)
+        o = [ok.take(ray) for ok in b.o]
+        d = [dk.take(ray) for dk in b.d]
+        table = [row.take(tri) for row in bvh._tri_table]
         t = _triangle_test(table, o, d, b.t_min)
 
         t_leaf = np.minimum.reduceat(t, offsets)
         # Among the pairs at a ray's minimum distance keep the lowest face id.
-        at_min = t == np.take(t_leaf, pair_ray)
-        cand = np.where(at_min, np.take(bvh._tri_face, tri), _NO_FACE)
+        at_min = t == t_leaf.take(pair_ray)
+        cand = np.where(at_min, bvh._tri_face.take(tri), _NO_FACE)
         f_leaf = np.minimum.reduceat(cand, offsets)
-        t_best = np.take(b.t_best, rays)
-        better = (t_leaf < t_best) | ((t_leaf == t_best) & (f_leaf < np.take(b.face, rays)))
+        t_best = b.t_best.take(rays)
+        better = (t_leaf < t_best) | ((t_leaf == t_best) & (f_leaf < b.face.take(rays)))
         better &= t_leaf < np.inf  # an all-miss leaf yields t = inf with a real face id
         win = np.flatnonzero(better)
-        r = np.take(rays, win)
-        np.put(b.t_best, r, np.take(t_leaf, win))
-        np.put(b.face, r, np.take(f_leaf, win))
+        r = rays.take(win)
+        b.t_best.put(r, t_leaf.take(win))
+        b.face.put(r, f_leaf.take(win))
 
     def _pop(self, rays: np.ndarray) -> None:
         """Pop the next stacked node of ``rays``; retire rays whose stack runs out.
@@ -417,18 +422,18 @@ class _Traversal:
         """
         b = self.b
         while rays.size:
-            sp = np.take(b.sp, rays)
+            sp = b.sp.take(rays)
             empty = sp == 0
-            b.alive[rays[empty]] = False
+            b.alive.put(rays.take(np.flatnonzero(empty)), False)
             keep = np.flatnonzero(~empty)
-            rays = np.take(rays, keep)
-            sp = np.take(sp, keep) - 1
-            np.put(b.sp, rays, sp)
+            rays = rays.take(keep)
+            sp = sp.take(keep) - 1
+            b.sp.put(rays, sp)
             slot = sp * b.n + rays
-            near = np.take(b.stack_t, slot) <= np.take(b.t_best, rays) * _BOX_SLACK
+            near = b.stack_t.take(slot) <= b.t_best.take(rays) * _BOX_SLACK
             ok = np.flatnonzero(near)
-            np.put(b.cur, np.take(rays, ok), np.take(b.stack_node, np.take(slot, ok)))
-            rays = np.take(rays, np.flatnonzero(~near))
+            b.cur.put(rays.take(ok), b.stack_node.take(slot.take(ok)))
+            rays = rays.take(np.flatnonzero(~near))
 
 
 def _box_test(lo, hi, o, inv, t_min, t_best):
@@ -496,6 +501,23 @@ def _triangle_test(tri, o, d, t_min):
 # ------------------------------------------------------------------------ build
 
 
+def _triangle_geometry(vertices, faces):
+    """Per-face ``v0``, edges, unnormalised normal, its length and usability.
+
+    A face is usable when its vertices are finite and it is not degenerate, i.e.
+    ``|e1 x e2| > _DEGENERATE_SIN * |e1| * |e2|`` with everything finite.
+    """
+    p0 = vertices.take(faces[:, 0], axis=0)
+    e1 = vertices.take(faces[:, 1], axis=0) - p0
+    e2 = vertices.take(faces[:, 2], axis=0) - p0
+    normal = np.cross(e1, e2)
+    nlen = np.sqrt(np.einsum("ij,ij->i", normal, normal))
+    scale = np.sqrt(np.einsum("ij,ij->i", e1, e1)) * np.sqrt(np.einsum("ij,ij->i", e2, e2))
+    usable = (nlen > _DEGENERATE_SIN * scale) & np.isfinite(nlen) & np.isfinite(scale)
+    usable &= np.isfinite(p0[:, 0]) & np.isfinite(p0[:, 1]) & np.isfinite(p0[:, 2])
+    return p0, e1, e2, normal, nlen, usable
+
+
 def _build_tree(tri_lo: np.ndarray, tri_hi: np.ndarray, leaf_size: int) -> dict:
     """Top-down binned-SAH build, vectorised over all nodes of one tree level.
 
@@ -504,7 +526,7 @@ def _build_tree(tri_lo: np.ndarray, tri_hi: np.ndarray, leaf_size: int) -> dict:
     Children of a node are allocated as a consecutive pair.
     """
     m = tri_lo.shape[0]
-    cent = 0.5 * (tri_lo + tri_hi)
+    cent = 0.5 * tri_lo + 0.5 * tri_hi  # not (lo + hi) / 2, which can overflow
     perm = np.arange(m)
     cap = 2 * m - 1
     node_lo = np.empty((cap, 3))
@@ -523,9 +545,11 @@ def _build_tree(tri_lo: np.ndarray, tri_hi: np.ndarray, leaf_size: int) -> dict:
         offsets = np.cumsum(act_count) - act_count
         total = int(offsets[-1] + act_count[-1])
         seg = np.repeat(np.arange(act_id.size), act_count)
-        local = np.arange(total) - offsets[seg]
-        tri = perm[act_start[seg] + local]
-        lo, hi, c = tri_lo[tri], tri_hi[tri], cent[tri]
+        local = np.arange(total) - np.take(offsets, seg)
+        tri = np.take(perm, np.take(act_start, seg) + local)
+        lo = np.take(tri_lo, tri, axis=0)
+        hi = np.take(tri_hi, tri, axis=0)
+        c = np.take(cent, tri, axis=0)
 
         nlo = np.minimum.reduceat(lo, offsets, axis=0)
         nhi = np.maximum.reduceat(hi, offsets, axis=0)
@@ -548,16 +572,20 @@ def _build_tree(tri_lo: np.ndarray, tri_hi: np.ndarray, leaf_size: int) -> dict:
         if not split.any():
             break
         # No SAH split exists when all centroids coincide: halve by position.
-        median = split & ~np.isfinite(split_cost)
-        goes_left = np.take_along_axis(bins, axis[seg][:, None], axis=1)[:, 0] <= split_bin[seg]
-        goes_left = np.where(median[seg], local < act_count[seg] // 2, goes_left)
+        median = split & (~np.isfinite(split_cost) | (depth > _SAH_MAX_DEPTH))
+        tri_bin = np.take(bins.ravel(), 3 * np.arange(total) + np.take(axis, seg))
+        goes_left = tri_bin <= np.take(split_bin, seg)
+        halves = local < np.take(act_count // 2, seg)
+        goes_left = np.where(np.take(median, seg), halves, goes_left)
 
+        # Stable in-place partition of every node range: lefts first, then rights.
         n_left = np.add.reduceat(goes_left.astype(np.int64), offsets)
         lefts_before = np.cumsum(goes_left) - goes_left
-        left_rank = lefts_before - lefts_before[offsets][seg]
-        new_local = np.where(goes_left, left_rank, n_left[seg] + (local - left_rank))
-        moving = split[seg]
-        perm[act_start[seg[moving]] + new_local[moving]] = tri[moving]
+        left_rank = lefts_before - np.take(np.take(lefts_before, offsets), seg)
+        new_local = np.where(goes_left, left_rank, np.take(n_left, seg) + (local - left_rank))
+        moving = np.flatnonzero(np.take(split, seg))
+        dest = np.take(act_start, np.take(seg, moving)) + np.take(new_local, moving)
+        perm[dest] = np.take(tri, moving)
 
         k = int(split.sum())
         children = n_nodes + 2 * np.arange(k, dtype=np.int64)
@@ -587,13 +615,16 @@ def _best_splits(lo, hi, cent, seg, offsets, count):
     ``area(L) * n(L) + area(R) * n(R)`` (``inf`` when no split separates anything).
     """
     n = offsets.size
-    nb = _SAH_BINS
+    # More bins than triangles per node buys nothing; deep levels hold many small
+    # nodes, where fewer bins make the per-bin arrays (the build's main cost) small.
+    nb = int(np.clip(np.ceil(count.mean()), 2, _SAH_BINS))
     clo = np.minimum.reduceat(cent, offsets, axis=0)
     chi = np.maximum.reduceat(cent, offsets, axis=0)
     ext = chi - clo
     with np.errstate(divide="ignore"):
         scale = np.where(ext > 0, nb / ext, 0.0)
-    bins = ((cent - clo[seg]) * scale[seg]).astype(np.int64)
+    bins = (cent - np.take(clo, seg, axis=0)) * np.take(scale, seg, axis=0)
+    bins = bins.astype(np.int64)
     np.clip(bins, 0, nb - 1, out=bins)
 
     # One flat bin id per (bin, axis, node), all three axes in one scatter pass.
@@ -601,19 +632,20 @@ def _best_splits(lo, hi, cent, seg, offsets, count):
     key = ((bins.T * 3 + np.arange(3)[:, None]) * n + seg[None, :]).ravel()
     size = nb * 3 * n
     cnt = np.bincount(key, minlength=size).reshape(nb, 3, n)
-    blo = np.full((3, size), np.inf)
-    bhi = np.full((3, size), -np.inf)
+    left_lo, right_lo, left_hi, right_hi = [], [], [], []
     for j in range(3):
-        np.minimum.at(blo[j], key, np.tile(lo[:, j], 3))
-        np.maximum.at(bhi[j], key, np.tile(hi[:, j], 3))
-    blo = blo.reshape(3, nb, 3, n)
-    bhi = bhi.reshape(3, nb, 3, n)
+        blo = np.full(size, np.inf)
+        bhi = np.full(size, -np.inf)
+        np.minimum.at(blo, key, np.tile(lo[:, j], 3))
+        np.maximum.at(bhi, key, np.tile(hi[:, j], 3))
+        blo = blo.reshape(nb, 3, n)
+        bhi = bhi.reshape(nb, 3, n)
+        left_lo.append(_sweep(np.minimum, blo)[:-1])
+        left_hi.append(_sweep(np.maximum, bhi)[:-1])
+        right_lo.append(_sweep(np.minimum, blo[::-1])[-2::-1])
+        right_hi.append(_sweep(np.maximum, bhi[::-1])[-2::-1])
 
     # Split "after bin i" for i < nb - 1: left = bins[:i+1], right = bins[i+1:].
-    left_lo = np.minimum.accumulate(blo, axis=1)[:, :-1]
-    left_hi = np.maximum.accumulate(bhi, axis=1)[:, :-1]
-    right_lo = np.minimum.accumulate(blo[:, ::-1], axis=1)[:, -2::-1]
-    right_hi = np.maximum.accumulate(bhi[:, ::-1], axis=1)[:, -2::-1]
     n_left = np.cumsum(cnt, axis=0)[:-1]
     n_right = count[None, None, :] - n_left
     with np.errstate(invalid="ignore"):
@@ -626,10 +658,25 @@ def _best_splits(lo, hi, cent, seg, offsets, count):
     return bins, best % 3, best // 3, best_cost
 
 
+def _sweep(ufunc, a):
+    """Inclusive prefix reduction along axis 0, one contiguous slab at a time.
+
+    Faster than ``ufunc.accumulate(a, axis=0)``, which NumPy runs element-wise
+    along the strided axis.
+    """
+    out = np.empty_like(a)
+    out[0] = a[0]
+    for i in range(1, a.shape[0]):
+        ufunc(out[i - 1], a[i], out=out[i])
+    return out
+
+
 def _half_area(lo, hi):
-    """Half surface area of boxes given as ``(3, ...)`` corner arrays."""
-    e = hi - lo
-    return e[0] * e[1] + e[1] * e[2] + e[2] * e[0]
+    """Half surface area of boxes given as per-axis corner arrays ``lo[k]``, ``hi[k]``."""
+    ex = hi[0] - lo[0]
+    ey = hi[1] - lo[1]
+    ez = hi[2] - lo[2]
+    return ex * ey + ey * ez + ez * ex
 
 
 def _child_bound_table(lo, hi, first_child):
