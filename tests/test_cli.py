@@ -24,7 +24,7 @@ GOOD_SCENARIO = {
 
 def run_cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
     env = {**os.environ, "LIDARSIM_DISABLE_PLUGIN_AUTOLOAD": "1", "COLUMNS": "200"}
-    return subprocess.run([sys.executable, "-m", "lidarsim_core.cli", *args], cwd=cwd, env=env,
+    return subprocess.run([sys.executable, "-m", "lidarsim_core", *args], cwd=cwd, env=env,
                           capture_output=True, text=True, timeout=300)
 
 

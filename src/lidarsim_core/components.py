@@ -29,6 +29,8 @@ def first_validation_error(exc: ValidationError, prefix: str = "") -> tuple[str,
     msg = err.get("msg", str(exc))
     if err.get("type") == "extra_forbidden":
         msg = "unknown key"
+    elif err.get("type") == "value_error":
+        msg = msg.removeprefix("Value error, ")
     return field or prefix or "<root>", msg
 
 

@@ -51,7 +51,8 @@ class FrameInfo:
 
     Poses are body→scene (``translation_m``, ``quaternion_xyzw`` scalar-last). ``targets_in_sensor``
     gives each target's pose in the sensor frame at frame start (the usual pose-estimation
-    ground truth: ``x_sensor = R @ x_target_body + t``).
+    ground truth: ``x_sensor = R @ x_target_body + t``), ``targets_in_sensor_end`` the same at
+    frame end.
     """
 
     frame: int
@@ -73,6 +74,7 @@ class FrameInfo:
     targets_in_sensor: list[dict[str, list[float]]]
     software: str = ""
     extra: dict[str, Any] = field(default_factory=dict)
+    targets_in_sensor_end: list[dict[str, list[float]]] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary."""

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 from pathlib import Path
 from typing import Any, Literal
 
@@ -113,13 +114,36 @@ class ScanConfig(_Strict):
     frames: int = Field(1, ge=1, description="Number of frames.")
     frame_period_s: float | None = Field(
         None, gt=0, description="Time between frame starts (s); default: duration_s.")
+    frame_rate_hz: float | None = Field(
+        None, gt=0, description="Frames per second, instead of frame_period_s (Hz).")
+    sequence_duration_s: float | None = Field(
+        None, gt=0, description="Instead of frames: simulate every frame that starts within "
+                                "this time after start_s (s).")
     motion: Literal["per_ray", "frozen"] = Field(
         "per_ray", description="'per_ray': every ray sees the poses at its own timestamp "
                                "(motion distortion); 'frozen': poses at frame start.")
 
+    @model_validator(mode="after")
+    def _sequence_timing(self) -> "ScanConfig":
+        if self.frame_period_s is not None and self.frame_rate_hz is not None:
+            raise ValueError("give either frame_period_s or frame_rate_hz, not both")
+        if self.sequence_duration_s is not None:
+            # frames whose start lies in [start_s, start_s + sequence_duration_s)
+            count = max(1, math.ceil(self.sequence_duration_s / self.period_s - 1e-9))
+            if "frames" in self.model_fields_set and self.frames != count:
+                raise ValueError(f"frames ({self.frames}) disagrees with sequence_duration_s "
+                                 f"({self.sequence_duration_s:g} s = {count} frames); give one")
+            self.frames = count
+        if self.frames > 1 and self.duration_s > self.period_s * (1 + 1e-9):
+            raise ValueError(f"duration_s ({self.duration_s:g} s) exceeds the frame period "
+                             f"({self.period_s:g} s): frames would overlap")
+        return self
+
     @property
     def period_s(self) -> float:
         """Time between frame starts (s)."""
+        if self.frame_rate_hz is not None:
+            return 1.0 / self.frame_rate_hz
         return self.frame_period_s or self.duration_s
 
     def frame_interval(self, frame: int) -> tuple[float, float]:

@@ -1,0 +1,127 @@
+"""Attitude laws for trajectories that define a position only (HCW, position keyframes).
+
+Two laws, chosen with ``mode``:
+
+``look_at`` (default)
+    The body's +X axis (the sensor boresight) points at ``point_m`` (scene frame); the body's
+    +Z axis is the component of ``up`` (scene frame) perpendicular to the boresight. When the
+    boresight is parallel to ``up`` the scene axis least aligned with the boresight is used as
+    "up" instead, and when the body sits on ``point_m`` the boresight is scene +X.
+``fixed``
+    A constant rotation, given like a pose's rotation (``euler_deg`` + ``euler_sequence`` or
+    ``quaternion_xyzw``, scalar-last).
+"""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal, Union
+
+import numpy as np
+from pydantic import ConfigDict, Discriminator, Field, Tag, model_validator
+from scipy.spatial.transform import Rotation
+
+from ..components import ComponentOptions
+from ..poses import PoseConfig
+
+Vec3 = tuple[float, float, float]
+
+
+class LookAtAttitude(ComponentOptions):
+    """Point the body's +X axis at a scene point, +Z toward ``up``."""
+
+    model_config = ConfigDict(allow_inf_nan=False)
+
+    mode: Literal["look_at"] = "look_at"
+    point_m: Vec3 = Field((0.0, 0.0, 0.0), description="Scene point the +X axis aims at (m).")
+    up: Vec3 = Field((0.0, 0.0, 1.0), description="Scene direction the body's +Z leans "
+                                                  "toward (default +z, H-bar in LVLH).")
+
+    @model_validator(mode="after")
+    def _nonzero_up(self) -> "LookAtAttitude":
+        if np.linalg.norm(self.up) < 1e-12:
+            raise ValueError("'up' must be a non-zero vector")
+        return self
+
+    def rotations(self, positions: np.ndarray) -> Rotation:
+        """Body→scene rotations for bodies at ``positions`` ((N, 3), m)."""
+        return look_at(positions, np.asarray(self.point_m, float), np.asarray(self.up, float))
+
+
+class FixedAttitude(ComponentOptions):
+    """A constant body→scene rotation."""
+
+    model_config = ConfigDict(allow_inf_nan=False)
+
+    mode: Literal["fixed"] = "fixed"
+    euler_deg: Vec3 | None = Field(None, description="Rotation angles (deg), see poses.")
+    euler_sequence: str = Field("xyz", description="SciPy Euler sequence (lower = extrinsic).")
+    quaternion_xyzw: tuple[float, float, float, float] | None = Field(
+        None, description="Scalar-last unit quaternion [x, y, z, w].")
+
+    @model_validator(mode="after")
+    def _valid_rotation(self) -> "FixedAttitude":
+        self.rotation()  # the pose model's checks (sequence, zero norm, one of two)
+        return self
+
+    def rotation(self) -> Rotation:
+        """The configured rotation."""
+        return PoseConfig(euler_deg=self.euler_deg, euler_sequence=self.euler_sequence,
+                          quaternion_xyzw=self.quaternion_xyzw).rotation()
+
+    def rotations(self, positions: np.ndarray) -> Rotation:
+        """The fixed rotation, once per position."""
+        quat = self.rotation().as_quat()
+        return Rotation.from_quat(np.tile(quat, (len(positions), 1)))
+
+
+def _mode(value: Any) -> str:
+    """The attitude law named by ``mode`` (default ``look_at``)."""
+    if isinstance(value, dict):
+        return value.get("mode", "look_at")
+    return getattr(value, "mode", "look_at")
+
+
+#: An attitude law as written in a scenario (``mode`` picks the law, default ``look_at``).
+AttitudeConfig = Annotated[Union[Annotated[LookAtAttitude, Tag("look_at")],
+                                 Annotated[FixedAttitude, Tag("fixed")]],
+                           Discriminator(_mode)]
+
+
+def look_at(positions: np.ndarray, point: np.ndarray, up: np.ndarray) -> Rotation:
+    """Rotations whose +X axis points from each position to ``point``, +Z toward ``up``.
+
+    Parameters
+    ----------
+    positions
+        (N, 3) body positions in the scene frame (m).
+    point
+        (3,) scene point to aim at (m).
+    up
+        (3,) preferred direction of the body's +Z axis (scene frame).
+
+    Returns
+    -------
+    Rotation
+        N body→scene rotations (columns of the matrix: boresight, left, up).
+    """
+    positions = np.atleast_2d(np.asarray(positions, dtype=np.float64))
+    n = len(positions)
+    x = point[None, :] - positions
+    norm = np.linalg.norm(x, axis=1)
+    on_point = norm < 1e-12
+    x[on_point] = (1.0, 0.0, 0.0)
+    norm[on_point] = 1.0
+    x /= norm[:, None]
+    ups = np.broadcast_to(up / np.linalg.norm(up), (n, 3)).copy()
+    z = ups - np.einsum("ij,ij->i", ups, x)[:, None] * x
+    znorm = np.linalg.norm(z, axis=1)
+    parallel = znorm < 1e-9
+    if parallel.any():
+        # the scene axis least aligned with the boresight is never parallel to it
+        alt = np.eye(3)[np.argmin(np.abs(x[parallel]), axis=1)]
+        z[parallel] = alt - np.einsum("ij,ij->i", alt, x[parallel])[:, None] * x[parallel]
+        znorm[parallel] = np.linalg.norm(z[parallel], axis=1)
+    z /= znorm[:, None]
+    y = np.cross(z, x)
+    return Rotation.from_matrix(np.stack([x, y, z], axis=2))
+

@@ -1,0 +1,267 @@
+"""Built-in plugin: poses interpolated between keyframes (``kind: keyframes``).
+
+Positions are interpolated with a cubic spline (``position_interpolation: cubic``, C² smooth,
+SciPy ``CubicSpline`` with not-a-knot ends) or piecewise linearly (``linear``); rotations with
+SLERP (``rotation_interpolation: slerp``, constant angular velocity between keyframes, SciPy
+``Slerp``) or a C² rotation spline (``spline``, SciPy ``RotationSpline``). Both reproduce the
+keyframes exactly. Outside the keyframes' time span the first/last pose is held
+(``extrapolate: hold``) or the simulation stops with an error (``extrapolate: error``).
+
+Keyframes come inline or from a file (relative paths are resolved against the scenario file)::
+
+    trajectory:
+      kind: keyframes
+      keyframes:
+        - {t_s: 0.0, position_m: [60, 0, 0], euler_deg: [0, 0, 0]}
+        - {t_s: 5.0, position_m: [50, 2, 0], quaternion_xyzw: [0, 0, 0.2588190, 0.9659258]}
+        - {t_s: 10.0, position_m: [40, 0, 0], euler_deg: [0, 0, 60]}
+
+    trajectory: {kind: keyframes, file: approach.csv, rotation_interpolation: spline}
+
+A keyframe file is YAML/JSON/TOML with the same ``keyframes:`` list, or CSV with a header:
+``t_s,x_m,y_m,z_m`` and optionally ``qx,qy,qz,qw`` (scalar-last quaternion) or
+``euler_x_deg,euler_y_deg,euler_z_deg`` (extrinsic x, then y, then z, as ``euler_deg``).
+Keyframes without rotations may take their rotation from an ``attitude`` law instead (e.g.
+``attitude: {mode: look_at, point_m: [0, 0, 0]}``).
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+from pathlib import Path
+from typing import Any, Literal, Mapping
+
+import numpy as np
+from pydantic import ConfigDict, Field, model_validator
+from scipy.spatial.transform import Rotation
+
+from ..components import ComponentOptions
+from ..config_io import read_config_file, validate_model
+from ..errors import ConfigError
+from ..hookspecs import hookimpl
+from ..poses import PoseConfig, Poses
+from .attitude import AttitudeConfig
+from .base import Trajectory
+
+_CSV_POSITION = ("t_s", "x_m", "y_m", "z_m")
+_CSV_QUATERNION = ("qx", "qy", "qz", "qw")
+_CSV_EULER = ("euler_x_deg", "euler_y_deg", "euler_z_deg")
+
+
+class Keyframe(PoseConfig):
+    """A pose at a time: ``t_s`` (s from the epoch) plus the pose fields."""
+
+    t_s: float = Field(description="Time of the keyframe (s from the scenario epoch).")
+
+    @property
+    def has_rotation(self) -> bool:
+        """Whether the keyframe gives a rotation."""
+        return self.euler_deg is not None or self.quaternion_xyzw is not None
+
+
+class _KeyframeFile(ComponentOptions):
+    keyframes: list[Keyframe] = Field(min_length=1)
+
+
+class KeyframeOptions(ComponentOptions):
+    """Keyframes (inline or from a file) and how to interpolate between them."""
+
+    model_config = ConfigDict(allow_inf_nan=False)
+
+    keyframes: list[Keyframe] | None = Field(None, min_length=1,
+                                             description="Inline keyframes, in time order.")
+    file: Path | None = Field(None, description="Keyframe file (CSV, YAML, JSON, TOML).")
+    position_interpolation: Literal["cubic", "linear"] = Field(
+        "cubic", description="'cubic' (C² spline) or 'linear'.")
+    rotation_interpolation: Literal["slerp", "spline"] = Field(
+        "slerp", description="'slerp' (piecewise constant rate) or 'spline' (C² rotation "
+                             "spline).")
+    extrapolate: Literal["hold", "error"] = Field(
+        "hold", description="Outside the keyframes: hold the end pose, or fail.")
+    attitude: AttitudeConfig | None = Field(
+        None, description="Rotation law for keyframes that give positions only.")
+
+    @model_validator(mode="after")
+    def _one_source(self) -> "KeyframeOptions":
+        if (self.keyframes is None) == (self.file is None):
+            raise ValueError("give exactly one of 'keyframes' (a list) or 'file'")
+        return self
+
+
+def _numbers(cells: dict[str, str], cols: tuple[str, ...], path: Path, line: int) -> list[float]:
+    out = []
+    for col in cols:
+        try:
+            out.append(float(cells.get(col, "")))
+        except ValueError:
+            raise ConfigError(f"'{cells.get(col, '')}' is not a number", source=path,
+                              field=f"line {line}.{col}") from None
+    return out
+
+
+def _read_csv(path: Path) -> tuple[list[Keyframe], list[int]]:
+    """Keyframes of a CSV file and the line number of each."""
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError("keyframe file not found", source=path) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"cannot read keyframe file: {exc}", source=path) from None
+    reader = csv.DictReader(io.StringIO(text, newline=""))
+    header = [h.strip() for h in (reader.fieldnames or [])]
+    missing = [c for c in _CSV_POSITION if c not in header]
+    if missing:
+        raise ConfigError(f"CSV header lacks column(s) {', '.join(missing)}; expected "
+                          f"{','.join(_CSV_POSITION)} and optionally {','.join(_CSV_QUATERNION)} "
+                          f"or {','.join(_CSV_EULER)}", source=path, field="header")
+    has_q = all(c in header for c in _CSV_QUATERNION)
+    has_e = all(c in header for c in _CSV_EULER)
+    if has_q and has_e:
+        raise ConfigError("CSV has both quaternion and Euler columns; keep one set",
+                          source=path, field="header")
+    frames: list[Keyframe] = []
+    lines: list[int] = []
+    for row in reader:
+        line = reader.line_num
+        cells = {(k or "").strip(): (v or "").strip() for k, v in row.items()}
+        t, x, y, z = _numbers(cells, _CSV_POSITION, path, line)
+        data: dict[str, Any] = {"t_s": t, "position_m": [x, y, z]}
+        if has_q:
+            data["quaternion_xyzw"] = _numbers(cells, _CSV_QUATERNION, path, line)
+        elif has_e:
+            data["euler_deg"] = _numbers(cells, _CSV_EULER, path, line)
+        frames.append(validate_model(Keyframe, data, source=path, prefix=f"line {line}"))
+        lines.append(line)
+    if not frames:
+        raise ConfigError("keyframe file has no rows", source=path)
+    return frames, lines
+
+
+def load_keyframe_file(path: str | Path) -> list[Keyframe]:
+    """Read keyframes from a CSV, YAML, JSON or TOML file (see the module docstring).
+
+    Raises
+    ------
+    ConfigError
+        One line naming the file and the line or field that is wrong.
+    """
+    path = Path(path)
+    if path.suffix.lower() == ".csv":
+        frames, lines = _read_csv(path)
+        fields = [f"line {line}.t_s" for line in lines]
+    else:
+        frames = validate_model(_KeyframeFile, read_config_file(path), source=path).keyframes
+        fields = [f"keyframes.{i}.t_s" for i in range(len(frames))]
+    check_times([k.t_s for k in frames], source=path, fields=fields)
+    return frames
+
+
+def check_times(times: list[float], *, source: Any, fields: list[str]) -> None:
+    """Raise a one-line :class:`ConfigError` unless ``times`` are finite and strictly increasing."""
+    for i, t in enumerate(times):
+        if not np.isfinite(t):
+            raise ConfigError("keyframe time must be a finite number", source=source,
+                              field=fields[i])
+        if i and t <= times[i - 1]:
+            raise ConfigError(f"keyframe times must increase strictly: t_s = {t:g} does not "
+                              f"follow the previous keyframe's t_s = {times[i - 1]:g}",
+                              source=source, field=fields[i])
+
+
+class KeyframeTrajectory(Trajectory):
+    """Poses interpolated between keyframes (cubic/linear positions, SLERP/spline rotations).
+
+    Parameters
+    ----------
+    options
+        Validated :class:`KeyframeOptions`.
+    base_dir
+        Directory a relative ``file`` is resolved against (default: the working directory).
+    source, field
+        Where the options came from, for error messages.
+    """
+
+    name = "keyframes"
+    Options = KeyframeOptions
+    options: KeyframeOptions
+
+    def __init__(self, options: KeyframeOptions | None = None, *, base_dir: Path | None = None,
+                 source: str | None = None, field: str = "options") -> None:
+        super().__init__(options)
+        opts = self.options
+        self._where = (source, field)
+        if opts.file is not None:
+            path = opts.file if opts.file.is_absolute() else (base_dir or Path.cwd()) / opts.file
+            frames = load_keyframe_file(path)
+        else:
+            frames = list(opts.keyframes or [])
+            check_times([k.t_s for k in frames], source=source,
+                        fields=[f"{field}.keyframes.{i}.t_s" for i in range(len(frames))])
+        rotated = [k.has_rotation for k in frames]
+        if opts.attitude is not None and any(rotated):
+            raise ConfigError("keyframes give rotations, so 'attitude' must be omitted",
+                              source=source, field=f"{field}.attitude")
+        self._times = np.array([k.t_s for k in frames], dtype=np.float64)
+        self._positions = np.array([k.position_m for k in frames], dtype=np.float64)
+        self._rotations = Rotation.concatenate([k.rotation() for k in frames])
+        self.is_static = len(frames) == 1
+        self._build_interpolators()
+
+    @classmethod
+    def from_config(cls, options: Mapping[str, Any] | None, *, source: str | None = None,
+                    field: str = "options") -> "KeyframeTrajectory":
+        """Validate ``options`` and build the trajectory; a relative ``file`` is resolved
+        against the directory of ``source`` when that is a file."""
+        opts = validate_model(cls.Options, dict(options or {}), source=source, prefix=field)
+        base = Path(source).parent if source and Path(source).is_file() else None
+        return cls(opts, base_dir=base, source=source, field=field)
+
+    def _build_interpolators(self) -> None:
+        from scipy.interpolate import CubicSpline
+        from scipy.spatial.transform import RotationSpline, Slerp
+
+        opts = self.options
+        self._position_fn = None
+        self._rotation_fn = None
+        if len(self._times) < 2:
+            return
+        if opts.position_interpolation == "cubic":
+            self._position_fn = CubicSpline(self._times, self._positions, axis=0)
+        else:
+            self._position_fn = lambda t: np.column_stack(
+                [np.interp(t, self._times, self._positions[:, i]) for i in range(3)])
+        if opts.rotation_interpolation == "spline":
+            self._rotation_fn = RotationSpline(self._times, self._rotations)
+        else:
+            self._rotation_fn = Slerp(self._times, self._rotations)
+
+    @property
+    def time_span(self) -> tuple[float, float]:
+        """First and last keyframe times (s)."""
+        return float(self._times[0]), float(self._times[-1])
+
+    def poses_at(self, t: np.ndarray) -> Poses:
+        t = np.atleast_1d(np.asarray(t, dtype=np.float64))
+        t0, t1 = self.time_span
+        if self.options.extrapolate == "error" and len(t) and (t.min() < t0 or t.max() > t1):
+            source, field = self._where
+            raise ConfigError(f"keyframes cover t = {t0:g}..{t1:g} s but the scan needs "
+                              f"t = {t.min():g}..{t.max():g} s (use extrapolate: hold or add "
+                              "keyframes)", source=source, field=f"{field}.extrapolate")
+        tc = np.clip(t, t0, t1)
+        if self._position_fn is None:
+            position = np.repeat(self._positions, len(t), axis=0)
+            rotation = Rotation.from_quat(np.repeat(self._rotations.as_quat(), len(t), axis=0))
+        else:
+            position = np.asarray(self._position_fn(tc), dtype=np.float64).reshape(-1, 3)
+            rotation = self._rotation_fn(tc)
+        if self.options.attitude is not None:
+            rotation = self.options.attitude.rotations(position)
+        return Poses(position, rotation)
+
+
+@hookimpl
+def lidarsim_register_trajectories(register: Any) -> None:
+    """Register the keyframe trajectory."""
+    register(KeyframeTrajectory)
