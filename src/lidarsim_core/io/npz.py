@@ -6,6 +6,7 @@ Read back with ``numpy.load(path)``: every point-record column under its name, `
 
 from __future__ import annotations
 
+import zipfile
 from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
@@ -15,6 +16,7 @@ from .base import Exporter
 
 if TYPE_CHECKING:
     from ..pointcloud import PointCloud
+    from .points import PointSource
 
 
 class NpzExporter(Exporter):
@@ -23,11 +25,23 @@ class NpzExporter(Exporter):
     name = "npz"
     suffixes = (".npz",)
 
-    def write(self, cloud: "PointCloud", stream: IO[bytes]) -> None:
-        np.savez_compressed(
-            stream, **cloud.columns, frame_json=np.array(cloud.metadata_json()),
-            part_names=np.array(cloud.frame.part_names, dtype=str),
-            target_names=np.array(cloud.frame.target_names, dtype=str))
+    def write_points(self, points: "PointSource", stream: IO[bytes]) -> None:
+        # the layout of numpy.savez_compressed, written one column at a time in chunks
+        with zipfile.ZipFile(stream, mode="w", compression=zipfile.ZIP_DEFLATED,
+                             allowZip64=True) as archive:
+            for name, dtype in points.fields.items():
+                with archive.open(f"{name}.npy", mode="w", force_zip64=True) as member:
+                    np.lib.format.write_array_header_1_0(member, {
+                        "descr": np.lib.format.dtype_to_descr(dtype), "fortran_order": False,
+                        "shape": (len(points),)})
+                    for chunk in points.iter_chunks([name]):
+                        member.write(chunk[name].tobytes())
+            extras = {"frame_json": np.array(points.metadata_json()),
+                      "part_names": np.array(points.frame.part_names, dtype=str),
+                      "target_names": np.array(points.frame.target_names, dtype=str)}
+            for name, array in extras.items():
+                with archive.open(f"{name}.npy", mode="w", force_zip64=True) as member:
+                    np.lib.format.write_array(member, array, allow_pickle=False)
 
 
 def read_npz(path: Any) -> "PointCloud":

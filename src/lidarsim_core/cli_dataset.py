@@ -1,0 +1,50 @@
+"""The ``lidarsim dataset`` command: many frames, one file each, resumable, serial or on Dask."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from .cli import _console, app, run_guarded
+
+
+@app.command()
+def dataset(source: Path = typer.Argument(..., help="Scenario file, or a dataset file with a "
+                                                    "'sequences:' list (see docs/datasets.md)."),
+            out: Path = typer.Option(..., "--out", "-o", help="Dataset directory (new, empty, "
+                                     "or one this same command started: it then resumes)."),
+            frames: Optional[int] = typer.Option(None, min=1, help="Frames per sequence "
+                                                 "(default: the scenario's scan.frames)."),
+            fmt: Optional[str] = typer.Option(None, "--format", help="Exporter: ply (default), "
+                                              "las, laz, pcd, npz, csv, or a plugin's."),
+            workers: Optional[int] = typer.Option(None, min=1, help="Run on a local Dask "
+                                                  "cluster of this many processes."),
+            scheduler: Optional[str] = typer.Option(None, help="Run on the Dask cluster at "
+                                                    "this address (e.g. tcp://head:8786)."),
+            verify: bool = typer.Option(False, help="Re-hash finished frames before skipping "
+                                        "them."),
+            quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar, no "
+                                       "summary."),
+            ) -> None:
+    """Generate a dataset: one file per frame, poses, manifest with checksums, splits."""
+    run_guarded(lambda: _dataset(source, out, frames, fmt, workers, scheduler, verify, quiet))
+
+
+def _dataset(source: Path, out: Path, frames: int | None, fmt: str | None,
+             workers: int | None, scheduler: str | None, verify: bool, quiet: bool) -> None:
+    from .dataset import generate_dataset
+    from .errors import ConfigError
+
+    if workers is not None and scheduler is not None:
+        raise ConfigError("give --workers or --scheduler, not both", field="workers")
+    result = generate_dataset(source, out, frames=frames, format=fmt, workers=workers,
+                              scheduler=scheduler, quiet=quiet, verify=verify)
+    if quiet:
+        return
+    rate = result.frames_written / result.elapsed_s if result.elapsed_s > 0 else 0.0
+    _console().print(
+        f"dataset {result.root}: {result.frames_total} frames ({result.frames_written} written, "
+        f"{result.frames_skipped} already done), {result.points_written:,} points in "
+        f"{result.elapsed_s:.1f} s ({rate:.2f} frames/s) → {result.manifest.name}")

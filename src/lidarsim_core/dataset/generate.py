@@ -1,0 +1,406 @@
+"""``lidarsim dataset``: many frames, reproducible, restartable, serial or on Dask.
+
+A run (see :func:`generate_dataset`):
+
+1. takes the directory's lock and reads the plan (one scenario, or a dataset file);
+2. normalises each sequence's scenario (inputs copied into ``DIR/inputs``, datasheet inlined,
+   backend resolved) and, if ``DIR`` already holds a dataset, refuses any difference;
+3. writes the scenario copies, the poses files, the splits and a first manifest;
+4. skips every frame whose file and sidecar are already complete, and produces the others,
+   each written atomically (a killed run leaves only hidden ``.part`` files, removed by the
+   next run);
+5. writes the final manifest with every frame's checksum.
+
+Running the same command again therefore resumes, and a finished directory is the same to the
+bit whether or not runs were interrupted on the way.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Iterator
+
+import numpy as np
+import yaml
+
+from ..errors import OutputError
+from ..io.base import atomic_output
+from ..io.points import DEFAULT_SPOOL_MEMORY
+from ..io.sidecar import frame_is_complete
+from ..plugins import get_registry
+from ..scenario import Scenario, scenario_from_dict
+from .config import DatasetPlan, SequencePlan, load_plan, scenario_variant
+from .executors import run_dask, run_serial
+from .frames import FrameJob
+from .identity import (dataset_identity, differences, exporter_identity, normalize_scenario,
+                       package_versions, sequence_identity)
+from .inputs import INPUTS_DIR, InputCopier
+from .layout import (DATASET_COPY, FRAMES_DIR, LOCK, MANIFEST, POSES, SCENARIO_COPY, SPLITS,
+                     SPLITS_DIR, frame_relpath, sequence_root)
+from .lock import dataset_lock, remove_stale_parts
+from .manifest import read_manifest, write_manifest
+from .poses import PosesFile
+from .progress import FrameProgress
+from .splits import assign_splits, splits_record, trajectory_key
+
+#: Name of the only sequence of a dataset made from one scenario.
+SINGLE_SEQUENCE = "main"
+DEFAULT_FORMAT = "ply"
+
+
+@dataclass
+class DatasetResult:
+    """What a run did.
+
+    Attributes
+    ----------
+    root
+        The dataset directory.
+    frames_total
+        Frames in the dataset.
+    frames_written
+        Frames this run produced.
+    frames_skipped
+        Frames found finished on disk.
+    points_written
+        Points in the frames this run produced.
+    elapsed_s
+        Wall time of the frame loop (s).
+    """
+
+    root: Path
+    frames_total: int
+    frames_written: int
+    frames_skipped: int
+    points_written: int
+    elapsed_s: float
+
+    @property
+    def manifest(self) -> Path:
+        """The manifest file."""
+        return self.root / MANIFEST
+
+
+@dataclass
+class _Sequence:
+    plan: SequencePlan
+    root: Path
+    data: dict[str, Any]  # normalised scenario dump
+    scenario: Scenario | None = None
+    frames: int = 0
+    identity: dict[str, Any] | None = None
+    poses: PosesFile | None = None
+    group: str = ""
+
+    @property
+    def copy_path(self) -> Path:
+        return self.root / SCENARIO_COPY
+
+
+def _plan_for(source: Scenario | str | Path, frames: int | None) -> DatasetPlan:
+    if isinstance(source, Scenario):
+        scenario = source
+        if frames is not None:
+            scenario = scenario_variant(scenario.model_dump(mode="json"), frames=frames,
+                                        source=None if source.source == "<scenario>"
+                                        else source.source)
+        return DatasetPlan([SequencePlan(SINGLE_SEQUENCE, scenario)], scenario.source)
+    plan = load_plan(source, frames=frames)
+    if not plan.multi:
+        plan.sequences[0].name = SINGLE_SEQUENCE
+    return plan
+
+
+def _check_directory(root: Path, manifest: dict[str, Any] | None) -> None:
+    if manifest is not None:
+        return
+    # a run killed before its first manifest leaves only these; anything else is not ours
+    ours = {LOCK, INPUTS_DIR, SCENARIO_COPY, DATASET_COPY, "sequences"}
+    foreign = [p.name for p in root.iterdir()
+               if p.name not in ours and not (p.name.startswith(".") and p.name.endswith(".part"))]
+    if foreign:
+        raise OutputError(f"directory is not empty and holds no lidarsim dataset "
+                          f"({', '.join(sorted(foreign)[:3])}...); choose an empty or new "
+                          "--out directory", source=root)
+
+
+def _refuse(root: Path, lines: list[str]) -> None:
+    shown = "; ".join(lines[:6]) + (f"; and {len(lines) - 6} more" if len(lines) > 6 else "")
+    raise OutputError(f"holds a dataset made differently ({shown}); use another --out "
+                      "directory, or delete this one to start over", source=root)
+
+
+def _old_scenario(path: Path) -> dict[str, Any] | None:
+    try:
+        return yaml.safe_load(path.read_text(encoding="utf-8"))
+    except (OSError, yaml.YAMLError):
+        return None
+
+
+def _normalise(plan: DatasetPlan, root: Path, copier: InputCopier) -> list[_Sequence]:
+    registry = get_registry()
+    out = []
+    for seq in plan.sequences:
+        seq_root = sequence_root(root, seq.name, plan.multi)
+        normal = normalize_scenario(seq.scenario, registry)
+        data = normal.model_dump(mode="json")
+        copier.localize(normal, data, seq_root)
+        out.append(_Sequence(seq, seq_root, data))
+    return out
+
+
+def _scenario_differences(root: Path, sequences: list[_Sequence],
+                          manifest: dict[str, Any]) -> list[str]:
+    old_names = [s["name"] for s in manifest.get("identity", {}).get("sequences", [])]
+    new_names = [s.plan.name for s in sequences]
+    if old_names != new_names:
+        return [f"sequences: {old_names} → {new_names}"]
+    lines = []
+    for seq in sequences:
+        old = _old_scenario(seq.copy_path)
+        prefix = "" if len(sequences) == 1 else f"{seq.plan.name}: "
+        lines += [prefix + line for line in differences(old, seq.data)]
+    return lines
+
+
+def _write_text(path: Path, text: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    if path.is_file() and path.read_text(encoding="utf-8") == text:
+        return
+    with atomic_output(path) as stream:
+        stream.write(text.encode("utf-8"))
+
+
+def _prepare_sequence(seq: _Sequence, suffix: str) -> None:
+    from ..simulate import Simulation
+
+    _write_text(seq.copy_path, yaml.safe_dump(seq.data, sort_keys=False))
+    seq.scenario = scenario_from_dict(seq.data, source=seq.copy_path)
+    sim = Simulation(seq.scenario)
+    seq.frames = seq.scenario.scan.frames
+    seq.poses = PosesFile(sim, seq.frames, lambda f: frame_relpath(f, suffix))
+    seq.identity = sequence_identity(seq.plan.name, sim, get_registry(), seq.poses.sha256)
+    seq.group = seq.plan.group or trajectory_key(seq.scenario)
+
+
+def _splits(plan: DatasetPlan, sequences: list[_Sequence]) -> tuple[dict[str, str], Any]:
+    if not plan.multi or len(sequences) < 2 or plan.config is None:
+        return {}, None
+    groups: dict[str, list[str]] = {}
+    for seq in sequences:
+        groups.setdefault(seq.group, []).append(seq.plan.name)
+    pinned = {s.plan.name: s.plan.split for s in sequences if s.plan.split}
+    assignment = assign_splits(groups, pinned, plan.config.splits, plan.config.split_seed,
+                               source=plan.source)
+    record = splits_record(groups, assignment, {s.plan.name: s.frames for s in sequences},
+                           plan.config.splits, plan.config.split_seed)
+    return assignment, record
+
+
+def _write_split_lists(root: Path, sequences: list[_Sequence], assignment: dict[str, str],
+                       record: dict[str, Any], suffix: str) -> None:
+    _write_text(root / SPLITS, json.dumps(record, indent=1, sort_keys=True) + "\n")
+    for split, names in record["splits"].items():
+        path = root / SPLITS_DIR / f"{split}.txt"
+        path.parent.mkdir(exist_ok=True)
+        with atomic_output(path) as stream:
+            for seq in sequences:
+                if seq.plan.name not in names:
+                    continue
+                rel = seq.root.relative_to(root).as_posix()
+                for frame in range(seq.frames):
+                    stream.write(f"{rel}/{frame_relpath(frame, suffix)}\n".encode("utf-8"))
+
+
+def _dataset_copy(plan: DatasetPlan, root: Path, sequences: list[_Sequence],
+                  exporter: dict[str, Any]) -> str:
+    assert plan.config is not None
+    config = plan.config
+    entries = []
+    for seq in sequences:
+        entry: dict[str, Any] = {"scenario": seq.copy_path.relative_to(root).as_posix(),
+                                 "name": seq.plan.name}
+        if seq.plan.split:
+            entry["split"] = seq.plan.split
+        if seq.plan.group:
+            entry["group"] = seq.plan.group
+        entries.append(entry)
+    data = {"sequences": entries, "splits": config.splits.model_dump(),
+            "split_seed": config.split_seed, "format": exporter["name"],
+            "exporter_options": exporter["options"]}
+    return yaml.safe_dump(data, sort_keys=False)
+
+
+def _sequence_summary(root: Path, seq: _Sequence, split: str | None) -> dict[str, Any]:
+    rel = seq.root.relative_to(root).as_posix() if seq.root != root else "."
+    assert seq.scenario is not None
+    return {"name": seq.plan.name, "root": rel, "scenario": SCENARIO_COPY, "poses": POSES,
+            "frames_dir": FRAMES_DIR, "frame_count": seq.frames, "seed": seq.scenario.seed,
+            "config_hash": seq.scenario.config_hash(), "split": split, "group": seq.group}
+
+
+def generate_dataset(source: Scenario | str | Path, out: str | Path, *,
+                     frames: int | None = None, format: str | None = None,
+                     exporter_options: dict[str, Any] | None = None,
+                     workers: int | None = None, scheduler: str | None = None,
+                     quiet: bool = True, verify: bool = False,
+                     spool_memory: int = DEFAULT_SPOOL_MEMORY) -> DatasetResult:
+    """Generate (or resume, or check) a dataset in ``out``.
+
+    Parameters
+    ----------
+    source
+        A scenario (object or file) or a dataset file with several ``sequences``.
+    out
+        The dataset directory (created if missing; must be empty or hold this same dataset).
+    frames
+        Number of frames of every sequence (default: the scenario's ``scan.frames``).
+    format
+        Exporter name (default: the dataset file's ``format``, else the format of the dataset
+        already in ``out``, else ``ply``).
+    exporter_options
+        Options of the exporter (default: the dataset file's ``exporter_options``, else those
+        of the dataset already in ``out``).
+    workers
+        Run on a local Dask cluster of this many single-threaded processes.
+    scheduler
+        Run on the Dask cluster at this address instead.
+    quiet
+        No progress bar.
+    verify
+        Recompute the checksum of every finished frame before skipping it.
+    spool_memory
+        Bytes of a frame's points held in memory before it streams through a temporary file.
+
+    Returns
+    -------
+    DatasetResult
+        Counts and timing of the run.
+
+    Raises
+    ------
+    OutputError
+        If ``out`` holds something else (another dataset, foreign files), or another run holds
+        its lock.
+    ConfigError
+        For invalid scenarios, dataset files or options (one line naming file and field).
+    """
+    plan = _plan_for(source, frames)
+    registry = get_registry()
+    config = plan.config
+    root = Path(out).resolve()
+    # resuming without naming a format: keep the directory's
+    previous = (read_manifest(root / MANIFEST) or {}).get("identity", {}).get("exporter") \
+        if root.is_dir() else None
+    name = format or (config.format if config else None) or (
+        previous["name"] if previous else DEFAULT_FORMAT)
+    if exporter_options is not None:
+        options = exporter_options
+    elif config is not None and config.exporter_options:
+        options = config.exporter_options
+    else:
+        options = previous["options"] if previous and previous["name"] == name else {}
+    exporter = registry.get("exporter", name, source=plan.source, field="format").from_config(
+        options, source=plan.source, field="exporter_options")
+    if not exporter.suffixes:
+        raise OutputError(f"exporter '{name}' declares no file suffix", field="format")
+    suffix = exporter.suffixes[0]
+    if root.exists() and not root.is_dir():
+        raise OutputError("--out must be a directory", source=root)
+    root.mkdir(parents=True, exist_ok=True)
+    with dataset_lock(root):
+        manifest = read_manifest(root / MANIFEST)
+        _check_directory(root, manifest)
+        copier = InputCopier(root)
+        sequences = _normalise(plan, root, copier)
+        if manifest is not None:
+            lines = _scenario_differences(root, sequences, manifest)
+            if lines:
+                copier.forget_created()
+                _refuse(root, lines)
+        try:
+            return _run(plan, root, sequences, exporter, manifest, suffix, workers=workers,
+                        scheduler=scheduler, quiet=quiet, verify=verify,
+                        spool_memory=spool_memory)
+        finally:
+            for seq in sequences:
+                if seq.poses is not None:
+                    seq.poses.close()
+
+
+def _run(plan: DatasetPlan, root: Path, sequences: list[_Sequence], exporter: Any,
+         manifest: dict[str, Any] | None, suffix: str, *, workers: int | None,
+         scheduler: str | None, quiet: bool, verify: bool, spool_memory: int
+         ) -> DatasetResult:
+    registry = get_registry()
+    for seq in sequences:
+        _prepare_sequence(seq, suffix)
+    exp_id = exporter_identity(exporter, registry)
+    identity = dataset_identity([s.identity for s in sequences if s.identity], exp_id,
+                                multi=plan.multi, packages=package_versions(exporter.requires))
+    if manifest is not None and manifest.get("identity") != identity:
+        _refuse(root, differences(manifest.get("identity"), identity))
+    remove_stale_parts([root, root / INPUTS_DIR, root / SPLITS_DIR] +
+                       [d for s in sequences for d in (s.root, s.root / FRAMES_DIR)])
+    assignment, split_record = _splits(plan, sequences)
+    summaries = [_sequence_summary(root, s, assignment.get(s.plan.name)) for s in sequences]
+    write_manifest(root / MANIFEST, identity=identity, sequences=summaries, splits=split_record)
+    for seq in sequences:
+        assert seq.poses is not None
+        seq.poses.save(seq.root / POSES)
+        (seq.root / FRAMES_DIR).mkdir(parents=True, exist_ok=True)
+    if plan.multi:
+        _write_text(root / DATASET_COPY, _dataset_copy(plan, root, sequences, exp_id))
+    if split_record is not None:
+        _write_split_lists(root, sequences, assignment, split_record, suffix)
+
+    done = {s.plan.name: np.array([frame_is_complete(s.root / frame_relpath(f, suffix),
+                                                     verify=verify) is not None
+                                   for f in range(s.frames)], dtype=bool) for s in sequences}
+    total = sum(s.frames for s in sequences)
+    skipped = int(sum(int(m.sum()) for m in done.values()))
+
+    def jobs() -> Iterator[FrameJob]:
+        for seq in sequences:
+            text = json.dumps(seq.data, sort_keys=True)
+            for frame in np.flatnonzero(~done[seq.plan.name]):
+                yield FrameJob(seq.plan.name, int(frame),
+                               str(seq.root / frame_relpath(int(frame), suffix)), text,
+                               str(seq.copy_path), exporter.name,
+                               exporter.options.model_dump(mode="json"), spool_memory)
+
+    with FrameProgress(total - skipped, quiet=quiet, already=skipped) as progress:
+        on_result = lambda result: progress.frame_done(result["points"])  # noqa: E731
+        if workers is None and scheduler is None:
+            run_serial(jobs(), on_result)
+        else:
+            run_dask(jobs(), on_result, workers=workers, scheduler=scheduler)
+    _finish(root, sequences, identity, summaries, split_record, suffix)
+    return DatasetResult(root, total, progress.written, skipped, progress.points,
+                         progress.elapsed)
+
+
+def _finish(root: Path, sequences: list[_Sequence], identity: dict[str, Any],
+            summaries: list[dict[str, Any]], splits: dict[str, Any] | None, suffix: str) -> None:
+    totals = {"frames": 0, "points": 0, "bytes": 0}
+
+    def frames_of(index: int) -> Iterator[dict[str, Any]]:
+        seq = sequences[index]
+        rel = seq.root.relative_to(root).as_posix()
+        for frame in range(seq.frames):
+            path = seq.root / frame_relpath(frame, suffix)
+            record = frame_is_complete(path)
+            if record is None:
+                raise OutputError("frame file or sidecar missing after the run", source=path)
+            totals["frames"] += 1
+            totals["points"] += record["points"]
+            totals["bytes"] += record["bytes"]
+            file = frame_relpath(frame, suffix) if rel == "." else \
+                f"{rel}/{frame_relpath(frame, suffix)}"
+            yield {"frame": frame, "file": file, "points": record["points"],
+                   "bytes": record["bytes"], "sha256": record["sha256"]}
+
+    write_manifest(root / MANIFEST, identity=identity, sequences=summaries, splits=splits,
+                   frames_of=frames_of, totals=totals)

@@ -1,0 +1,80 @@
+"""The ground-truth poses file of a sequence, streamed frame by frame.
+
+The content is exactly :func:`lidarsim_core.groundtruth.ground_truth` (same header, same
+per-frame records from :func:`~lidarsim_core.groundtruth.frame_record`, read back by
+:func:`~lidarsim_core.groundtruth.read_ground_truth`), but written one frame at a time so that
+a sequence of any length needs constant memory.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import shutil
+import tempfile
+from pathlib import Path
+from typing import IO, TYPE_CHECKING, Callable
+
+from ..groundtruth import frame_record, ground_truth
+from ..io.base import atomic_output
+
+if TYPE_CHECKING:
+    from ..simulate import Simulation
+
+_SPOOL_BYTES = 8 * 2 ** 20
+
+
+class _Hashing:
+    """A write-only stream that hashes what it forwards."""
+
+    def __init__(self, stream: IO[bytes]) -> None:
+        self.stream = stream
+        self.digest = hashlib.sha256()
+
+    def write(self, data: bytes) -> None:
+        self.digest.update(data)
+        self.stream.write(data)
+
+
+def _write(out: _Hashing, sim: "Simulation", frames: int, cloud: Callable[[int], str]) -> None:
+    header = ground_truth([sim.frame_info(0)], [cloud(0)])
+    header.pop("frames")
+    text = json.dumps(header, indent=1)
+    out.write((text[:-2] + ',\n "frames": [').encode("utf-8"))
+    for frame in range(frames):
+        record = frame_record(sim.frame_info(frame), cloud(frame))
+        out.write((("\n  " if frame == 0 else ",\n  ") + json.dumps(record)).encode("utf-8"))
+    out.write(b"\n ]\n}\n")
+
+
+class PosesFile:
+    """The poses of a sequence, generated once into a spooled buffer and hashed.
+
+    Call :meth:`save` to put them in place (atomically); use as a context manager.
+    """
+
+    def __init__(self, sim: "Simulation", frames: int, cloud: Callable[[int], str]) -> None:
+        self._buffer = tempfile.SpooledTemporaryFile(max_size=_SPOOL_BYTES)
+        out = _Hashing(self._buffer)  # type: ignore[arg-type]
+        _write(out, sim, frames, cloud)
+        self.sha256 = out.digest.hexdigest()
+
+    def save(self, path: Path) -> None:
+        """Write the poses to ``path`` atomically (skipped if it already holds them)."""
+        from ..io.sidecar import sha256_file
+
+        if path.is_file() and sha256_file(path) == self.sha256:
+            return
+        self._buffer.seek(0)
+        with atomic_output(path) as stream:
+            shutil.copyfileobj(self._buffer, stream)
+
+    def close(self) -> None:
+        """Release the buffer."""
+        self._buffer.close()
+
+    def __enter__(self) -> "PosesFile":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

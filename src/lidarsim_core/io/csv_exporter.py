@@ -1,0 +1,50 @@
+"""Built-in plugin: CSV text, one row per point, every column, exact values.
+
+A header row names the columns (point-record order); floating-point values are written in
+Python's shortest round-trip form (``repr``), so parsing them gives back the same float64 bits;
+integers as integers. Plain RFC 4180 CSV with ``\\n`` line ends and no comment lines, so any
+reader (pandas, numpy, spreadsheets, CloudCompare's ASCII import with a header line) takes it;
+the frame metadata therefore lives only in the sidecar JSON. Text is ~3x larger and much slower
+to write than the binary formats: use it for small clouds and inspection.
+"""
+
+from __future__ import annotations
+
+from typing import IO, TYPE_CHECKING, Any
+
+import numpy as np
+
+from ..hookspecs import hookimpl
+from .base import Exporter
+
+if TYPE_CHECKING:
+    from .points import PointSource
+
+_CHUNK_POINTS = 16384
+
+
+def _texts(values: np.ndarray) -> list[str]:
+    if values.dtype.kind == "f":
+        return [repr(v) for v in values.tolist()]
+    return [str(v) for v in values.tolist()]
+
+
+class CsvExporter(Exporter):
+    """CSV with a header row, every column, floats in shortest exact form (metadata: sidecar)."""
+
+    name = "csv"
+    suffixes = (".csv",)
+
+    def write_points(self, points: "PointSource", stream: IO[bytes]) -> None:
+        names = list(points.fields)
+        stream.write((",".join(names) + "\n").encode("ascii"))
+        for chunk in points.iter_chunks(names, size=_CHUNK_POINTS):
+            columns = [_texts(chunk[name]) for name in names]
+            rows = "\n".join(",".join(row) for row in zip(*columns))
+            stream.write((rows + "\n").encode("ascii"))
+
+
+@hookimpl
+def lidarsim_register_exporters(register: Any) -> None:
+    """Register the CSV exporter."""
+    register(CsvExporter)

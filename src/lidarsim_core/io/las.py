@@ -1,0 +1,241 @@
+"""Built-in plugins: LAS 1.4 and LAZ (compressed LAS) through laspy (extra ``las``).
+
+Point data record format 6 (LAS 1.4, with GPS time). The point record maps to it as follows:
+
+====================  =================================================================
+LAS field             from
+====================  =================================================================
+X, Y, Z               x, y, z (sensor frame), integers of ``scale_m`` (default 0.1 mm),
+                      offset 0: rounded to the nearest step, so |error| <= scale_m / 2
+gps_time              timestamp: seconds from the scenario epoch (not GPS time; global
+                      encoding says "GPS week time", the field's neutral setting)
+intensity             the ``intensity`` column when there is one (a float column is read
+                      as 0..1 and scaled to 0..65535, an integer column is clipped), else 0
+return_number,        the same columns (LAS holds 1..15; larger values are an error)
+number_of_returns
+classification        64 + part (ASPRS classes 64..255 are user-definable), named in a
+                      standard Classification Lookup VLR; a scene with more than 192 parts
+                      writes class 1 (unclassified) and keeps ``part`` as extra bytes
+extra bytes           every other column under its own name and exact type (x_true, range,
+                      ray_index as int64, ...), described in the standard Extra Bytes VLR
+====================  =================================================================
+
+The frame metadata (poses, sensor, seed, configuration hash...) is JSON in a VLR with user ID
+``lidarsim``, record ID 1 (an EVLR when it exceeds a VLR's 65,535 bytes). The project GUID is
+derived from the configuration hash and the frame index; system identifier and generating
+software name lidarsim. The file creation day and year are written as 0 ("unknown"): a
+regenerated frame is identical to the bit.
+
+laspy (and lazrs for LAZ) are imported only when a file is written.
+"""
+
+from __future__ import annotations
+
+import json
+import uuid
+from pathlib import Path
+from typing import IO, TYPE_CHECKING, Any, ClassVar
+
+import numpy as np
+from pydantic import Field
+
+from .._version import __version__
+from ..components import ComponentOptions
+from ..errors import ConfigError, OutputError
+from ..hookspecs import hookimpl
+from .base import Exporter
+
+if TYPE_CHECKING:
+    from ..pointcloud import PointCloud
+    from .points import PointSource
+
+#: Standard fields of point format 6 filled from the point record (besides x, y, z, part).
+_STANDARD = ("timestamp", "return_number", "number_of_returns", "intensity")
+#: VLR holding the frame metadata.
+METADATA_USER_ID = "lidarsim"
+METADATA_RECORD_ID = 1
+#: Classification of part 0; ASPRS reserves 0..63.
+CLASS_OFFSET = 64
+_MAX_VLR_BYTES = 65535
+_CREATION_DATE_OFFSET = 90  # File Creation Day of Year (u16) and Year (u16) in the header
+_GUID_NAMESPACE = uuid.UUID("5d1f1f7e-5a53-4a8e-9d6e-6c1d4f3b2a10")
+_CHUNK_POINTS = 262144
+
+
+class LasOptions(ComponentOptions):
+    """Options of the LAS/LAZ exporters."""
+
+    scale_m: float = Field(1e-4, gt=0, le=0.01,
+                           description="Coordinate resolution (m): X, Y, Z are integers of it.")
+
+
+def _laspy() -> Any:
+    try:
+        import laspy
+    except ImportError as exc:
+        raise OutputError(f"writing LAS/LAZ needs laspy ({exc}); pip install "
+                          "'lidarsim-core[las]'") from None
+    return laspy
+
+
+def classes_fit(part_names: list[str]) -> bool:
+    """Whether every part gets its own user-definable LAS class (at most 192 parts)."""
+    return len(part_names) <= 256 - CLASS_OFFSET
+
+
+def extra_columns(fields: dict[str, np.dtype], part_names: list[str]) -> list[str]:
+    """Columns stored as LAS extra bytes: everything not held by a standard field."""
+    standard = {"x", "y", "z", *_STANDARD}
+    if classes_fit(part_names):
+        standard.add("part")
+    return [name for name in fields if name not in standard]
+
+
+def _class_label(name: str) -> str:
+    # the lookup VLR holds 15 ASCII characters; the full names are in the metadata VLR
+    short = name.rsplit("/", 1)[-1].encode("ascii", "replace").decode("ascii")
+    return short[:15]
+
+
+def _intensity_u16(values: np.ndarray) -> np.ndarray:
+    if values.dtype.kind == "f":
+        return np.round(np.clip(values.astype(np.float64), 0.0, 1.0) * 65535.0).astype(np.uint16)
+    return np.clip(values, 0, 65535).astype(np.uint16)
+
+
+class LasExporter(Exporter):
+    """LAS 1.4 point format 6: gps time, returns, class per part, the rest as extra bytes."""
+
+    name = "las"
+    suffixes = (".las",)
+    Options = LasOptions
+    options: LasOptions
+    requires = ("laspy", "lazrs")
+    #: Whether to compress (LAZ).
+    compress: ClassVar[bool] = False
+
+    def _header(self, laspy: Any, points: "PointSource") -> tuple[Any, list[str]]:
+        frame = points.frame
+        header = laspy.LasHeader(point_format=6, version="1.4")
+        header.scales = np.full(3, self.options.scale_m)
+        header.offsets = np.zeros(3)
+        header.system_identifier = "lidarsim simulation"
+        header.generating_software = f"lidarsim-core {__version__}"[:32]
+        header.uuid = uuid.uuid5(_GUID_NAMESPACE, f"{frame.config_hash}/{frame.frame}")
+        header.global_encoding.wkt = True  # required for point formats 6..10
+        extras = extra_columns(points.fields, frame.part_names)
+        header.add_extra_dims([laspy.ExtraBytesParams(name, points.fields[name],
+                                                      description=name[:32])
+                               for name in extras])
+        if classes_fit(frame.part_names):
+            lookup = laspy.vlrs.known.ClassificationLookupVlr()
+            for i, part in enumerate(frame.part_names):
+                lookup[CLASS_OFFSET + i] = _class_label(part)
+            header.vlrs.append(lookup)
+        blob = points.metadata_json().encode("utf-8")
+        vlr = laspy.VLR(user_id=METADATA_USER_ID, record_id=METADATA_RECORD_ID,
+                        description="lidarsim frame metadata", record_data=blob)
+        (header.vlrs if len(blob) <= _MAX_VLR_BYTES else header.evlrs).append(vlr)
+        return header, extras
+
+    def write_points(self, points: "PointSource", stream: IO[bytes]) -> None:
+        laspy = _laspy()
+        header, extras = self._header(laspy, points)
+        fields = points.fields
+        with_part = classes_fit(points.frame.part_names)
+        scale = self.options.scale_m
+        columns = ["x", "y", "z", "timestamp", "return_number", "number_of_returns",
+                   *(["part"] if with_part else []),
+                   *(["intensity"] if "intensity" in fields else []), *extras]
+        backend = laspy.LazBackend.Lazrs if self.compress else None
+        start = stream.tell()
+        with laspy.open(stream, mode="w", header=header, do_compress=self.compress,
+                        laz_backend=backend, closefd=False) as writer:
+            for chunk in points.iter_chunks(columns, size=_CHUNK_POINTS):
+                n = len(chunk["x"])
+                record = laspy.ScaleAwarePointRecord.zeros(n, header=header)
+                for axis in "xyz":
+                    record[axis.upper()] = self._scaled(axis, chunk[axis], scale)
+                record["gps_time"] = chunk["timestamp"]
+                for column in ("return_number", "number_of_returns"):
+                    values = chunk[column]
+                    if n and (values.min() < 0 or values.max() > 15):
+                        raise OutputError(f"column '{column}' exceeds LAS's 0..15; use .npz",
+                                          field=column)
+                    record[column] = values
+                record["classification"] = (chunk["part"].astype(np.int64) + CLASS_OFFSET
+                                            if with_part else np.ones(n, dtype=np.uint8))
+                if "intensity" in chunk:
+                    record["intensity"] = _intensity_u16(chunk["intensity"])
+                for name in extras:
+                    record[name] = chunk[name]
+                writer.write_points(record)
+        end = stream.seek(0, 2)
+        stream.seek(start + _CREATION_DATE_OFFSET)
+        stream.write(bytes(4))  # creation day and year 0: "unknown", so reruns are identical
+        stream.seek(end)
+
+    @staticmethod
+    def _scaled(axis: str, values: np.ndarray, scale: float) -> np.ndarray:
+        ints = np.round(values / scale)
+        if len(ints) and (np.abs(ints).max() > np.iinfo(np.int32).max or
+                          not np.all(np.isfinite(ints))):
+            raise OutputError(f"coordinate '{axis}' beyond LAS's int32 range at scale "
+                              f"{scale:g} m; raise scale_m or use .npz", field=axis)
+        return ints.astype(np.int32)
+
+
+class LazExporter(LasExporter):
+    """LAZ (LASzip-compressed LAS 1.4, via lazrs): the same content as ``las``, smaller."""
+
+    name = "laz"
+    suffixes = (".laz",)
+    compress = True
+
+
+def read_las(path: str | Path) -> "PointCloud":
+    """Read a LAS/LAZ file written by :class:`LasExporter` back into a point cloud.
+
+    x, y, z come back at the file's resolution (``scale_m``); ``part`` from the classification
+    (or the extra bytes), ``timestamp`` from the GPS time, the rest from the extra bytes.
+
+    Raises
+    ------
+    ConfigError
+        If the file lacks lidarsim's metadata VLR.
+    """
+    from ..pointcloud import POINT_FIELDS, FrameInfo, PointCloud
+
+    laspy = _laspy()
+    data = laspy.read(str(path))
+    blob = None
+    for vlr in [*data.header.vlrs, *data.header.evlrs]:
+        if vlr.user_id == METADATA_USER_ID and vlr.record_id == METADATA_RECORD_ID:
+            blob = vlr.record_data
+    if blob is None:
+        raise ConfigError("LAS file lacks lidarsim's metadata VLR", source=path)
+    frame = FrameInfo.from_dict(json.loads(bytes(blob).decode("utf-8")))
+    columns: dict[str, np.ndarray] = {
+        "x": np.asarray(data.x, dtype=np.float64), "y": np.asarray(data.y, dtype=np.float64),
+        "z": np.asarray(data.z, dtype=np.float64),
+        "timestamp": np.asarray(data.gps_time, dtype=np.float64),
+        "return_number": np.asarray(data.return_number, dtype=np.uint8),
+        "number_of_returns": np.asarray(data.number_of_returns, dtype=np.uint8)}
+    for name in data.point_format.extra_dimension_names:
+        columns[name] = np.asarray(data[name])
+    if "intensity" in POINT_FIELDS:
+        raw = np.asarray(data.intensity)
+        kind = np.dtype(POINT_FIELDS["intensity"]).kind
+        columns["intensity"] = raw / 65535.0 if kind == "f" else raw
+    if "part" not in columns:
+        columns["part"] = (np.asarray(data.classification, dtype=np.int64)
+                           - CLASS_OFFSET).astype(np.int16)
+    columns = {k: v.astype(POINT_FIELDS.get(k, v.dtype), copy=False) for k, v in columns.items()}
+    return PointCloud(columns, frame)
+
+
+@hookimpl
+def lidarsim_register_exporters(register: Any) -> None:
+    """Register the LAS and LAZ exporters (laspy is imported only when writing)."""
+    register(LasExporter)
+    register(LazExporter)

@@ -1,0 +1,168 @@
+"""Built-in plugin: binary PCD (Point Cloud Data v0.7) with PCL's field conventions.
+
+Fields follow what PCL point types and ROS drivers expect, so ``pcl::io::loadPCDFile`` fills
+``pcl::PointXYZ``/``PointXYZI``/``PointXYZL`` and Open3D reads the coordinates:
+
+=================  ======================  ==============================================
+point record       PCD field (TYPE SIZE)   why
+=================  ======================  ==============================================
+x, y, z            x, y, z (F 4)           PCL's float coordinates (option ``xyz_dtype``
+                                           ``float64`` writes F 8 instead)
+part               label (U 4)             ``pcl::PointXYZL::label``; index into the
+                                           frame's ``part_names``
+channel            ring (U 2)              the ROS LiDAR drivers' laser ring
+intensity          intensity (F 4)         ``pcl::PointXYZI`` (only when the column exists)
+ray_index          ray_index (U 4)         unsigned 32-bit (larger values are an error)
+face_index         face_index (I 4)        32-bit (larger values are an error)
+every other column its own name            same type (F 8, U 1, I 2, ...)
+=================  ======================  ==============================================
+
+The frame metadata is a header comment ``# lidarsim-frame {json}`` (PCL and Open3D skip lines
+starting with ``#``). Points are in the sensor frame, so ``VIEWPOINT`` is the identity.
+:func:`read_pcd` reads the files back into point-record columns.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import IO, TYPE_CHECKING, Any, Literal
+
+import numpy as np
+from pydantic import Field
+
+from ..components import ComponentOptions
+from ..errors import ConfigError, OutputError
+from ..hookspecs import hookimpl
+from .base import Exporter
+
+if TYPE_CHECKING:
+    from ..pointcloud import PointCloud
+    from .points import PointSource
+
+#: Point-record column → PCD field name, where PCL/ROS use another name.
+PCD_NAMES: dict[str, str] = {"part": "label", "channel": "ring"}
+#: Columns written with a fixed PCD type (NumPy dtype) whatever their record dtype.
+_FIXED_TYPES: dict[str, str] = {"part": "<u4", "channel": "<u2", "intensity": "<f4",
+                                "ray_index": "<u4", "face_index": "<i4"}
+_PCD_TYPE_CHAR = {"f": "F", "i": "I", "u": "U"}
+_METADATA_PREFIX = "# lidarsim-frame "
+
+
+class PcdOptions(ComponentOptions):
+    """Options of the PCD exporter."""
+
+    xyz_dtype: Literal["float32", "float64"] = Field(
+        "float32", description="Type of the measured x, y, z: float32 as PCL's point types "
+                               "(~10 µm steps at 100 m), or float64 for full precision.")
+
+
+def pcd_layout(fields: dict[str, np.dtype], xyz_dtype: str = "float32"
+               ) -> list[tuple[str, str, np.dtype]]:
+    """``(record column, PCD field name, written little-endian dtype)`` for each column."""
+    layout = []
+    for column, dtype in fields.items():
+        if column in ("x", "y", "z"):
+            out = np.dtype(xyz_dtype).newbyteorder("<")
+        elif column in _FIXED_TYPES:
+            out = np.dtype(_FIXED_TYPES[column])
+        else:
+            out = np.dtype(dtype).newbyteorder("<")
+            if out.kind not in _PCD_TYPE_CHAR:
+                raise OutputError(f"column '{column}' of type {dtype} has no PCD type",
+                                  field=column)
+        layout.append((column, PCD_NAMES.get(column, column), out))
+    return layout
+
+
+def pcd_header(layout: list[tuple[str, str, np.dtype]], count: int, metadata_json: str) -> str:
+    """The ASCII header of a binary PCD v0.7 file."""
+    lines = ["# .PCD v0.7 - Point Cloud Data file format", _METADATA_PREFIX + metadata_json,
+             "VERSION 0.7",
+             "FIELDS " + " ".join(name for _, name, _ in layout),
+             "SIZE " + " ".join(str(dt.itemsize) for _, _, dt in layout),
+             "TYPE " + " ".join(_PCD_TYPE_CHAR[dt.kind] for _, _, dt in layout),
+             "COUNT " + " ".join("1" for _ in layout),
+             f"WIDTH {count}", "HEIGHT 1", "VIEWPOINT 0 0 0 1 0 0 0", f"POINTS {count}",
+             "DATA binary"]
+    return "\n".join(lines) + "\n"
+
+
+def _check_fits(column: str, values: np.ndarray, out: np.dtype) -> None:
+    if out.kind in "iu" and len(values):
+        info = np.iinfo(out)
+        if values.min() < info.min or values.max() > info.max:
+            raise OutputError(f"column '{column}' does not fit PCD type {out.kind.upper()} "
+                              f"{out.itemsize}; use .npz", field=column)
+
+
+class PcdExporter(Exporter):
+    """Binary PCD v0.7 with PCL field names (x y z, label, ring) and metadata in a comment."""
+
+    name = "pcd"
+    suffixes = (".pcd",)
+    Options = PcdOptions
+    options: PcdOptions
+
+    def write_points(self, points: "PointSource", stream: IO[bytes]) -> None:
+        layout = pcd_layout(points.fields, self.options.xyz_dtype)
+        stream.write(pcd_header(layout, len(points), points.metadata_json()).encode("utf-8"))
+        record = np.dtype([(name, out) for _, name, out in layout])
+        for chunk in points.iter_chunks([column for column, _, _ in layout]):
+            data = np.empty(len(chunk["x"]), dtype=record)
+            for column, name, out in layout:
+                _check_fits(column, chunk[column], out)
+                data[name] = chunk[column]
+            stream.write(data.tobytes())
+
+
+def read_pcd(path: str | Path) -> "PointCloud":
+    """Read a binary PCD written by :class:`PcdExporter` back into a point cloud.
+
+    PCD field names are mapped back to point-record columns (``label`` → ``part``, ``ring`` →
+    ``channel``) with the record's dtypes; x, y, z are as precise as the file.
+
+    Raises
+    ------
+    ConfigError
+        If the file is not a binary PCD with lidarsim frame metadata.
+    """
+    from ..pointcloud import POINT_FIELDS, FrameInfo, PointCloud
+
+    path = Path(path)
+    header: dict[str, list[str]] = {}
+    metadata: dict[str, Any] | None = None
+    with open(path, "rb") as stream:
+        while True:
+            raw = stream.readline()
+            if not raw:
+                raise ConfigError("PCD header has no DATA line", source=path)
+            line = raw.decode("utf-8").rstrip("\n")
+            if line.startswith(_METADATA_PREFIX):
+                metadata = json.loads(line[len(_METADATA_PREFIX):])
+            elif line and not line.startswith("#"):
+                key, *values = line.split()
+                header[key] = values
+                if key == "DATA":
+                    break
+        if header["DATA"] != ["binary"]:
+            raise ConfigError(f"PCD DATA is {' '.join(header['DATA'])}, not binary", source=path)
+        if metadata is None:
+            raise ConfigError("PCD file lacks the lidarsim-frame comment", source=path)
+        count = int(header["POINTS"][0])
+        kinds = {"F": "f", "I": "i", "U": "u"}
+        dtype = np.dtype([(name, f"<{kinds[t]}{s}") for name, t, s in
+                          zip(header["FIELDS"], header["TYPE"], header["SIZE"])])
+        data = np.frombuffer(stream.read(count * dtype.itemsize), dtype=dtype, count=count)
+    back = {pcd: column for column, pcd in PCD_NAMES.items()}
+    columns = {}
+    for name in dtype.names or ():
+        column = back.get(name, name)
+        columns[column] = data[name].astype(POINT_FIELDS.get(column, data[name].dtype))
+    return PointCloud(columns, FrameInfo.from_dict(metadata))
+
+
+@hookimpl
+def lidarsim_register_exporters(register: Any) -> None:
+    """Register the PCD exporter."""
+    register(PcdExporter)

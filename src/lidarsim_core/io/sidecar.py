@@ -1,0 +1,109 @@
+"""The sidecar JSON written beside every exported point-cloud file.
+
+Whatever room a format has for metadata, ``<file name>.json`` (e.g. ``frame_000000.las.json``)
+always holds the frame metadata (poses, sensor, seed, configuration hash...), what the file
+contains and its checksum::
+
+    {"format": "lidarsim-frame", "version": 1, "file": "frame_000000.las", "exporter": "las",
+     "points": 51234, "columns": [["x", "float64"], ...], "bytes": 6012345,
+     "sha256": "…", "frame": {… FrameInfo …}}
+
+The content depends only on the file and its frame (no dates, no host names), so regenerating
+a frame regenerates its sidecar bit for bit. Datasets use a present, readable sidecar whose
+file has the recorded size as the mark of a finished frame: it is written, atomically, only
+after its data file.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from ..errors import ConfigError
+
+if TYPE_CHECKING:
+    from .base import Exporter
+    from .points import PointSource
+
+SIDECAR_FORMAT = "lidarsim-frame"
+SIDECAR_VERSION = 1
+_READ_BLOCK = 4 * 2 ** 20
+
+
+def sidecar_path(path: str | Path) -> Path:
+    """The sidecar of ``path``: the same name with ``.json`` appended."""
+    path = Path(path)
+    return path.with_name(path.name + ".json")
+
+
+def sha256_file(path: str | Path) -> str:
+    """Hex SHA-256 of a file, read in blocks."""
+    digest = hashlib.sha256()
+    with open(path, "rb") as stream:
+        while block := stream.read(_READ_BLOCK):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def sidecar_record(path: str | Path, points: "PointSource", exporter: "Exporter"
+                   ) -> dict[str, Any]:
+    """The sidecar content for the finished file ``path`` holding ``points``."""
+    path = Path(path)
+    return {"format": SIDECAR_FORMAT, "version": SIDECAR_VERSION, "file": path.name,
+            "exporter": exporter.name, "points": len(points),
+            "columns": [[name, dtype.name] for name, dtype in points.fields.items()],
+            "bytes": path.stat().st_size, "sha256": sha256_file(path),
+            "frame": points.frame.to_dict()}
+
+
+def write_sidecar(path: str | Path, record: dict[str, Any]) -> Path:
+    """Write ``record`` atomically to the sidecar of ``path``; returns the sidecar's path."""
+    from .base import atomic_output
+
+    target = sidecar_path(path)
+    text = json.dumps(record, indent=1, sort_keys=True) + "\n"
+    with atomic_output(target) as stream:
+        stream.write(text.encode("utf-8"))
+    return target
+
+
+def read_sidecar(path: str | Path) -> dict[str, Any]:
+    """Read the sidecar of the point-cloud file ``path`` (or a sidecar path itself).
+
+    Raises
+    ------
+    ConfigError
+        If it is missing, not JSON, or not a lidarsim sidecar.
+    """
+    path = Path(path)
+    target = path if path.name.endswith(".json") else sidecar_path(path)
+    try:
+        data = json.loads(target.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ConfigError("sidecar file not found", source=target) from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise ConfigError(f"cannot read sidecar: {exc}", source=target) from None
+    if not isinstance(data, dict) or data.get("format") != SIDECAR_FORMAT:
+        raise ConfigError(f"not a {SIDECAR_FORMAT} sidecar", source=target, field="format")
+    return data
+
+
+def frame_is_complete(path: str | Path, *, verify: bool = False) -> dict[str, Any] | None:
+    """The sidecar record if ``path`` is a finished export, else ``None``.
+
+    Finished means: the sidecar reads, names this file, and the file has the recorded size
+    (and, with ``verify``, the recorded SHA-256).
+    """
+    path = Path(path)
+    try:
+        record = read_sidecar(path)
+        size = path.stat().st_size
+    except (ConfigError, OSError):
+        return None
+    if record.get("file") != path.name or record.get("bytes") != size:
+        return None
+    if verify and record.get("sha256") != sha256_file(path):
+        return None
+    return record
