@@ -63,7 +63,7 @@ scenario = scenario_from_dict({
     "scan": {"duration_s": DURATION_S},
     "noise": ["angular", "range"],                  # the datasheet's two errors, in order
 })
-print(f"3. scene: Envisat at {scenario.targets[0].pose.position_m} m, quaternion "
+print(f"3. scene: Envisat body origin at {scenario.targets[0].pose.position_m} m, quaternion "
       f"{[round(q, 3) for q in scenario.targets[0].pose.quaternion_xyzw]}")
 # --8<-- [end:scenario]
 
@@ -81,8 +81,9 @@ from lidarsim_core.report.stats import angular_error_components, fit_normal, ran
 
 angular = fit_normal(np.degrees(angular_error_components(noisy)).ravel())
 ranging = fit_normal(range_errors(noisy))
-print(f"5. errors: angular σ = {angular.sigma:.4f}° (datasheet {sheet.angular_precision_deg:g}°), "
-      f"range σ = {1e3 * ranging.sigma:.2f} mm (datasheet {1e3 * sheet.range_precision_m:g} mm)")
+print(f"5. errors: angular σ = {angular.sigma:.4f}° "
+      f"(datasheet {sheet.angular_precision_deg:g}°), range σ = {1e3 * ranging.sigma:.2f} mm "
+      f"(datasheet {1e3 * sheet.range_precision_m:g} mm)")
 # Eq. 4: the measured point is the true one moved by the range error e along the ray
 v_dir = noisy.xyz_true / noisy["range_true"][:, None]
 e = range_errors(noisy)

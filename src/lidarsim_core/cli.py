@@ -111,6 +111,9 @@ def _demo(out: Path, duration: float, backend: str, detail: str, seed: int) -> N
     with atomic_output(out / "scenario.yaml") as stream:
         stream.write(scenario_text.encode("utf-8"))
     _print_demo_summary(out, results, time.perf_counter() - started)
+    from .cli_report import demo_report
+
+    demo_report(out)
 
 
 def _print_demo_summary(out: Path, results: dict[str, Any], wall: float) -> None:
@@ -285,7 +288,8 @@ def schema_scenario() -> None:
 
 
 #: Modules that add further commands to :data:`app` when imported (one module per command group).
-COMMAND_MODULES: tuple[str, ...] = ()
+COMMAND_MODULES: tuple[str, ...] = ("cli_patterns", "cli_motion", "cli_bench", "cli_report",
+                                     "cli_dataset")
 
 
 def _load_command_modules() -> None:
@@ -302,4 +306,7 @@ def main(argv: list[str] | None = None) -> None:
 
 
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    # run through the package module so command modules extend the same ``app``
+    from lidarsim_core.cli import main as _main
+
+    sys.exit(_main())

@@ -1,0 +1,272 @@
+"""Generate the reference pages of the documentation from the code itself.
+
+Run by the mkdocs-gen-files plugin at every ``mkdocs build`` (see ``mkdocs.yml``), so the pages
+cannot drift from the pydantic models and the catalogue:
+
+* ``reference/scenario.md`` — every scenario field, from :class:`lidarsim_core.scenario.Scenario`,
+  and the options of every built-in trajectory, noise model, ray backend, target model and
+  exporter, from their ``Options`` models;
+* ``reference/datasheet.md`` — every datasheet field, from
+  :class:`lidarsim_core.datasheet.SensorDatasheet`, and the options of every scan pattern;
+* ``reference/sensors.md`` — the built-in sensor catalogue, one row per file in ``sensors/``.
+
+Only built-in plugins are documented: third-party entry points are switched off here.
+"""
+
+from __future__ import annotations
+
+import os
+import types
+import typing
+from pathlib import Path
+from typing import Any, Iterator
+
+os.environ["LIDARSIM_DISABLE_PLUGIN_AUTOLOAD"] = "1"
+
+from pydantic import BaseModel  # noqa: E402
+from pydantic_core import PydanticUndefined  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: Component kinds documented with the scenario, with their section titles and where they go.
+SCENARIO_KINDS = (
+    ("trajectory", "Trajectories", "`sensor.trajectory` / `targets[].trajectory`: "
+                                   "`{kind: NAME, ...options}`"),
+    ("noise_model", "Noise models", "`noise: [{name: NAME, options: {...}}]`"),
+    ("ray_backend", "Ray backends", "`backend: {name: NAME, options: {...}}`"),
+    ("target_model", "Target models", "`targets[].mesh: {model: NAME, options: {...}}`"),
+    ("exporter", "Exporters (output formats)", "chosen by the output file's suffix or "
+                                               "`--format NAME`"),
+)
+
+
+# ---- type and value formatting ------------------------------------------------------------
+def type_name(annotation: Any) -> str:
+    """A short, readable name of a field's type (``or`` instead of ``|`` for tables)."""
+    origin = typing.get_origin(annotation)
+    args = typing.get_args(annotation)
+    if origin in (typing.Union, types.UnionType):
+        names = list(dict.fromkeys(type_name(a) for a in args if a is not type(None)))
+        return " or ".join(names) + (" or null" if type(None) in args else "")
+    if origin is typing.Literal:
+        return " / ".join(f"`{a}`" for a in args)
+    if origin in (list, tuple, dict):
+        inner = ", ".join("…" if a is Ellipsis else type_name(a) for a in args)
+        return f"{origin.__name__}[{inner}]" if inner else origin.__name__
+    if origin is typing.Annotated:
+        return type_name(args[0])
+    if isinstance(annotation, type):
+        if issubclass(annotation, BaseModel):
+            return "mapping"
+        return {"str": "string", "int": "integer", "float": "number", "bool": "boolean",
+                "PosixPath": "path", "Path": "path", "WindowsPath": "path"}.get(
+                    annotation.__name__, annotation.__name__)
+    return str(annotation).replace("typing.", "")
+
+
+def default_text(field: Any) -> str:
+    """The default of a pydantic field as shown in the tables ("required" when none)."""
+    if field.is_required():
+        return "required"
+    value = field.default_factory() if field.default_factory is not None else field.default
+    if value is PydanticUndefined:
+        return "required"
+    if isinstance(value, BaseModel):
+        value = value.model_dump(exclude_defaults=True) or value.model_dump()
+    if value is None:
+        return "—"
+    if isinstance(value, str):
+        return f"`{value}`" if value else '`""`'
+    return f"`{value!r}`" if not isinstance(value, (list, tuple, dict)) or value else f"`{value}`"
+
+
+def _cell(text: str) -> str:
+    return " ".join(text.split()).replace("|", "\\|")
+
+
+def _nested_models(annotation: Any) -> Iterator[tuple[str, type[BaseModel]]]:
+    """``(suffix, model)`` for pydantic models inside a type: ``""`` direct, ``"[]"`` in a list."""
+    origin = typing.get_origin(annotation)
+    args = typing.get_args(annotation)
+    if isinstance(annotation, type) and issubclass(annotation, BaseModel):
+        yield "", annotation
+    elif origin in (typing.Union, types.UnionType, typing.Annotated):
+        for a in args:
+            yield from _nested_models(a)
+    elif origin in (list, tuple):
+        for a in args:
+            if a is not Ellipsis:
+                for suffix, model in _nested_models(a):
+                    yield "[]" + suffix, model
+
+
+def field_rows(model: type[BaseModel], prefix: str = "", *,
+               stop: tuple[type[BaseModel], ...] = ()) -> list[tuple[str, str, str, str]]:
+    """``(dotted name, type, default, description)`` of every field of ``model``, recursively.
+
+    Models in ``stop`` are listed as one field (they have their own table).
+    """
+    rows: dict[str, tuple[str, str, str, str]] = {}
+    for name, field in model.model_fields.items():
+        path = f"{prefix}{name}"
+        nested = [(suffix, m) for suffix, m in _nested_models(field.annotation)]
+        meaning = field.description or (_summary(nested[0][1]) if nested else "")
+        rows.setdefault(path, (path, type_name(field.annotation), default_text(field), meaning))
+        for suffix, sub in nested:
+            if sub not in stop:
+                # models that share field names (alternatives of a union) share their rows
+                for row in field_rows(sub, f"{path}{suffix}.", stop=stop):
+                    rows.setdefault(row[0], row)
+    return list(rows.values())
+
+
+def table(rows: list[tuple[str, str, str, str]]) -> str:
+    """A Markdown table of field rows."""
+    lines = ["| field | type | default | meaning |", "|---|---|---|---|"]
+    lines += [f"| `{p}` | {_cell(t)} | {_cell(d)} | {_cell(m)} |" for p, t, d, m in rows]
+    return "\n".join(lines)
+
+
+def _summary(obj: Any) -> str:
+    doc = (obj.__doc__ or "").strip()
+    return " ".join(doc.split("\n\n")[0].split()) if doc else ""
+
+
+def component_sections(kind: str, level: str = "###") -> str:
+    """One section per registered built-in component of ``kind``: summary and options table."""
+    from lidarsim_core.plugins import get_registry
+
+    out = []
+    for entry in get_registry().iter(kind):
+        cls = entry.obj
+        rows = field_rows(cls.Options)
+        body = table(rows) if rows else "No options."
+        extra = ""
+        if kind == "exporter":
+            extra = f" Suffixes: {', '.join(f'`{s}`' for s in cls.suffixes)}."
+        out.append(f"{level} `{entry.name}`\n\n{_summary(cls)}{extra}\n\n{body}\n")
+    return "\n".join(out)
+
+
+# ---- pages ------------------------------------------------------------------------------------
+def scenario_reference() -> str:
+    """The scenario reference page."""
+    from lidarsim_core.poses import PoseConfig
+    from lidarsim_core.scenario import Scenario
+
+    parts = [
+        "# Scenario reference\n",
+        "Generated from `lidarsim_core.scenario.Scenario` and the built-in plugins' `Options` "
+        "models at every documentation build. Unknown keys are errors; a wrong value is "
+        "reported as one line naming the file and the dotted field (e.g. "
+        "`targets.0.pose.position_m`). The JSON schema: `lidarsim schema scenario`. "
+        "For a guided tour see [Scenario files](../scenario.md).\n",
+        "## Fields\n",
+        table(field_rows(Scenario, stop=(PoseConfig,))),
+        "\n`pose` fields are in [Poses](#poses); a `trajectory` is `{kind: NAME, ...options}` "
+        "with the options of [that trajectory](#trajectories).\n",
+        "## Poses\n",
+        "A pose maps body → scene: `x_scene = R · x_body + position_m`.\n",
+        table(field_rows(PoseConfig)),
+    ]
+    for kind, title, where in SCENARIO_KINDS:
+        parts.append(f"\n## {title}\n\nUsed as {where}.\n")
+        parts.append(component_sections(kind))
+    return "\n".join(parts) + "\n"
+
+
+def datasheet_reference() -> str:
+    """The datasheet reference page."""
+    from lidarsim_core.datasheet import SensorDatasheet
+
+    return "\n".join([
+        "# Datasheet reference\n",
+        "Generated from `lidarsim_core.datasheet.SensorDatasheet` and the built-in scan "
+        "patterns' `Options` models at every documentation build. JSON schema: "
+        "`lidarsim schema sensor`. Every value carries its unit in its name; every datasheet "
+        "names its `sources`, and values that are estimates are listed in "
+        "`estimated_fields`. See the [vendor guide](../vendor_guide.md) to write one.\n",
+        "## Fields\n",
+        table(field_rows(SensorDatasheet)),
+        "\n## Scan patterns\n\nA datasheet's `scan_pattern: {name: NAME, options: {...}}`; a "
+        "scenario can override options with `sensor.pattern_options`.\n",
+        component_sections("scan_pattern"),
+    ]) + "\n"
+
+
+def _fov(sheet: Any) -> str:
+    if sheet.fov_type == "circular":
+        return f"{sheet.fov_h_deg:g}° circular"
+    centre = f", centre {sheet.fov_v_center_deg:+g}°" if sheet.fov_v_center_deg else ""
+    return f"{sheet.fov_h_deg:g}° × {sheet.fov_v_deg:g}° {sheet.fov_type}{centre}"
+
+
+def catalogue_sheets() -> list[Any]:
+    """Every datasheet in the repository's ``sensors/`` directory, by name."""
+    from lidarsim_core.datasheet import load_datasheet
+
+    return sorted((load_datasheet(p) for p in (ROOT / "sensors").glob("*.yaml")),
+                  key=lambda s: s.name)
+
+
+def sensor_catalogue() -> str:
+    """The built-in sensor catalogue page."""
+    sheets = catalogue_sheets()
+    lines = [
+        "# Built-in sensor catalogue\n",
+        f"Generated from the {len(sheets)} datasheets in `sensors/` at every documentation "
+        "build (`lidarsim sensors` prints the same list, with plugins' sensors). σ are 1σ "
+        "precisions. Each sensor's section below gives its sources and the values that are "
+        "estimates rather than datasheet figures.\n",
+        "| name | sensor | FOV | range (m) | points/s | σ range | σ angle | pattern |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for s in sheets:
+        lines.append(
+            f"| [`{s.name}`](#{s.name.replace('.', '')}) | {_cell(f'{s.manufacturer} {s.model}')} "
+            f"| {_fov(s)} | {s.range_min_m:g}–{s.range_max_m:g} | {s.point_rate_hz:,.0f} | "
+            f"{1000 * s.range_precision_m:g} mm | {s.angular_precision_deg:g}° | "
+            f"`{s.scan_pattern.name}` |")
+    lines.append("")
+    for s in sheets:
+        lines.append(f"## {s.name}\n")
+        if s.description:
+            lines.append(_cell(s.description) + "\n")
+        facts = [f"{s.manufacturer} {s.model}", _fov(s), f"{s.point_rate_hz:,.0f} points/s"]
+        if s.wavelength_nm:
+            facts.append(f"{s.wavelength_nm:g} nm")
+        if s.beam_divergence_deg:
+            facts.append(f"divergence {s.beam_divergence_deg[0]:g}° × "
+                         f"{s.beam_divergence_deg[1]:g}°")
+        lines.append("; ".join(facts) + ".\n")
+        if s.estimated_fields:
+            lines.append("Estimated, not datasheet figures: "
+                         + ", ".join(f"`{f}`" for f in s.estimated_fields) + ".\n")
+        lines.append("Sources:\n")
+        for src in s.sources:
+            title = f"<{src.url}> — {src.title}" if src.url else src.title
+            note = f": {src.note}" if src.note else ""
+            lines.append(f"* {_cell(title + note)}")
+        lines.append("")
+    return "\n".join(lines) + "\n"
+
+
+PAGES = {
+    "reference/scenario.md": scenario_reference,
+    "reference/datasheet.md": datasheet_reference,
+    "reference/sensors.md": sensor_catalogue,
+}
+
+
+def write_pages() -> None:
+    """Write every generated page into the documentation being built."""
+    import mkdocs_gen_files
+
+    for path, build in PAGES.items():
+        with mkdocs_gen_files.open(path, "w") as stream:
+            stream.write(build())
+        mkdocs_gen_files.set_edit_path(path, "gen_reference.py")
+
+
+if __name__ in ("__main__", "<run_path>"):
+    write_pages()
