@@ -10,6 +10,19 @@ os.environ.setdefault("LIDARSIM_DISABLE_PLUGIN_AUTOLOAD", "1")
 
 import pytest  # noqa: E402
 
+pytest_plugins = ["pytester"]
+
+
+def pytest_report_header(config: pytest.Config) -> list[str]:
+    """Say which ray backends the conformance suite runs here and which it skips, and why."""
+    from lidarsim_core.plugins import get_registry
+
+    lines = []
+    for entry in get_registry().iter("ray_backend"):
+        ok, why = entry.obj.is_available()
+        lines.append(f"  {entry.name}: {'runs' if ok else 'SKIPPED: ' + why} ({entry.provider})")
+    return ["ray backends (conformance suite):"] + lines
+
 
 @pytest.fixture
 def fresh_registry():

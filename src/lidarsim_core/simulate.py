@@ -23,6 +23,7 @@ import numpy as np
 from ._version import __version__
 from .backends.base import RayBackend
 from .builtin_sensors import get_sensor
+from .chunks import ordered_map, rotate, split_range, to_body, worker_threads
 from .config_io import validate_model
 from .datasheet import SensorDatasheet
 from .errors import ConfigError, LidarsimError, PluginError
@@ -38,6 +39,8 @@ from .scenario import NamedComponent, Scenario, load_scenario, scenario_from_dic
 from .trajectories.base import Trajectory
 
 DEFAULT_NOISE_CHAIN = ("angular", "range")
+#: Rays per unit of work handed to a pipeline thread (a chunk is split into such pieces).
+PIECE_RAYS = 16384
 
 
 @dataclass
@@ -160,15 +163,41 @@ class Simulation:
 
     def iter_chunks(self, frame: int, chunk_rays: int | None = None
                     ) -> Iterator[dict[str, np.ndarray]]:
-        """Point-record columns of ``frame``, one dictionary per chunk of emitted rays."""
+        """Point-record columns of ``frame``, one dictionary per chunk of emitted rays.
+
+        Each chunk is processed in pieces of at most :data:`PIECE_RAYS` rays on
+        :func:`~lidarsim_core.chunks.worker_threads` threads (``LIDARSIM_THREADS``; one thread
+        if the backend is not ``thread_safe``); every ray's result depends only on its index,
+        so neither setting changes the output.
+        """
         chunk = chunk_rays or self.scenario.chunk_rays
         k0, k1 = self.frame_rays(frame)
         contexts = self._noise_contexts(frame)
         t_frame = self.scenario.scan.frame_interval(frame)[0]
-        for start in range(k0, k1, chunk):
-            batch = self.pattern.rays_for_indices(np.arange(start, min(start + chunk, k1),
-                                                            dtype=np.int64))
-            yield self._process(batch, contexts, t_frame)
+        for target in self.targets:  # build acceleration structures before the workers start
+            self.backend.prepared(target.mesh)
+        pieces = [(c, lo, hi) for c, (start, stop) in enumerate(split_range(k0, k1, chunk))
+                  for lo, hi in split_range(start, stop, PIECE_RAYS)]
+
+        def work(piece: tuple[int, int, int]) -> dict[str, np.ndarray]:
+            batch = self.pattern.rays_for_indices(np.arange(piece[1], piece[2], dtype=np.int64))
+            return self._process(batch, contexts, t_frame)
+
+        def merged(parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+            if len(parts) == 1:
+                return parts[0]
+            return {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
+
+        done: list[dict[str, np.ndarray]] = []
+        current = 0
+        workers = worker_threads() if self.backend.thread_safe else 1
+        for (c, _, _), columns in zip(pieces, ordered_map(work, pieces, workers)):
+            if c != current:
+                yield merged(done)
+                done, current = [], c
+            done.append(columns)
+        if done:
+            yield merged(done)
 
     def _poses(self, trajectory: Trajectory, t: np.ndarray, t_frame: float) -> Poses:
         if self.scenario.scan.motion == "frozen":
@@ -181,30 +210,45 @@ class Simulation:
             raise PluginError(f"trajectory '{trajectory.name}' failed: "
                               f"{type(exc).__name__}: {exc}") from exc
 
-    def _process(self, batch: RayBatch, contexts: list[NoiseContext],
-                 t_frame: float) -> dict[str, np.ndarray]:
+    def _chunk_poses(self, trajectory: Trajectory, t: np.ndarray, t_frame: float) -> Poses:
+        """Poses for a piece's rays: one pose (applied to all) when it cannot vary."""
+        if self.scenario.scan.motion == "frozen" or trajectory.is_static:
+            return self._poses(trajectory, t[:1], t_frame)
+        return self._poses(trajectory, t, t_frame)
+
+    def _body_rays(self, batch: RayBatch, contexts: list[NoiseContext], t_frame: float
+                   ) -> tuple[np.ndarray, list[tuple[np.ndarray, np.ndarray]]]:
+        """Directions flown (sensor frame) and, per target, the rays in its body frame."""
         flown = batch.direction
         for model, ctx in zip(self.noise, contexts):
             flown = model.perturb_rays(flown, batch.index, ctx)
-        sensor_poses = self._poses(self.sensor_trajectory, batch.t, t_frame)
+        sensor_poses = self._chunk_poses(self.sensor_trajectory, batch.t, t_frame)
         origin_scene = sensor_poses.position
-        dir_scene = sensor_poses.rotate(flown)
+        dir_scene = rotate(sensor_poses, flown)
+        bodies = []
+        for target in self.targets:
+            poses = self._chunk_poses(target.trajectory, batch.t, t_frame)
+            d_body = rotate(poses, dir_scene, inverse=True)
+            bodies.append((np.broadcast_to(to_body(poses, origin_scene), d_body.shape), d_body))
+        return flown, bodies
+
+    def _process(self, batch: RayBatch, contexts: list[NoiseContext],
+                 t_frame: float) -> dict[str, np.ndarray]:
+        flown, bodies = self._body_rays(batch, contexts, t_frame)
         n = len(batch)
         best = np.full(n, np.inf)
         target_id = np.full(n, -1, dtype=np.int16)
         face = np.full(n, -1, dtype=np.int64)
         part = np.full(n, -1, dtype=np.int16)
         cos_inc = np.zeros(n)
-        for j, target in enumerate(self.targets):
-            poses = self._poses(target.trajectory, batch.t, t_frame)
-            o_body = poses.apply_inverse(origin_scene)
-            d_body = poses.rotate_inverse(dir_scene)
+        for j, (target, (o_body, d_body)) in enumerate(zip(self.targets, bodies)):
             hits = self.backend.cast(target.mesh, o_body, d_body)
-            closer = hits.hit & (hits.distance < best)
+            closer = np.flatnonzero(hits.hit & (hits.distance < best))
+            hit_face = hits.face[closer]
             best[closer] = hits.distance[closer]
             target_id[closer] = j
-            face[closer] = hits.face[closer]
-            part[closer] = target.mesh.face_part[hits.face[closer]] + target.part_offset
+            face[closer] = hit_face
+            part[closer] = target.mesh.face_part[hit_face] + target.part_offset
             cos_inc[closer] = np.abs(np.einsum("ij,ij->i", hits.normal[closer], d_body[closer]))
         sheet = self.sensor
         keep = (target_id >= 0) & (best >= sheet.range_min_m) & (best <= sheet.range_max_m)
@@ -245,6 +289,7 @@ class Simulation:
             target_poses_start=[p[0].to_records()[0] for p in targets],
             target_poses_end=[p[1].to_records()[0] for p in targets],
             targets_in_sensor=[p[0].relative_to(sensor[0]).to_records()[0] for p in targets],
+            targets_in_sensor_end=[p[1].relative_to(sensor[1]).to_records()[0] for p in targets],
             software=f"lidarsim-core {__version__}")
 
     def run_frame(self, frame: int = 0, chunk_rays: int | None = None) -> PointCloud:

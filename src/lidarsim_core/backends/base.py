@@ -21,6 +21,7 @@ from pydantic import Field
 
 from ..components import Component, ComponentOptions
 from ..mesh import Mesh
+from ..vec3 import rowdot
 
 
 @dataclass(frozen=True)
@@ -69,6 +70,16 @@ class RayBackend(Component):
     options: BackendOptions
     #: One sentence on the numerical precision of returned distances.
     precision: ClassVar[str] = ""
+    #: Bound on the error of returned distances, relative to the largest length involved
+    #: (the distance, the ray origin's coordinates, the mesh's coordinates and extent).
+    distance_rtol: ClassVar[float] = 1e-9
+    #: Rays passing closer than this to a triangle edge, relative to the same length scale
+    #: as the mesh (its largest coordinate or extent), may report a neighbouring face or miss
+    #: a silhouette that exact arithmetic would hit.
+    edge_tolerance_rel: ClassVar[float] = 1e-9
+    #: Whether :meth:`intersect` may run on several threads at once on the same prepared mesh
+    #: (the pipeline then casts pieces of a frame in parallel; otherwise on one thread).
+    thread_safe: ClassVar[bool] = False
     #: Prepared meshes shared by every instance of the class, keyed by (options, mesh key).
     _cache_size: ClassVar[int] = 8
 
@@ -124,7 +135,8 @@ def refine_on_faces(mesh: Mesh, face: np.ndarray, origins: np.ndarray,
     """
     normal = mesh.face_normals[face]
     v0 = mesh.vertices[mesh.faces[face, 0]]
-    denom = np.einsum("ij,ij->i", directions, normal)
+    denom = rowdot(directions, normal)
+    v0 -= origins
     with np.errstate(divide="ignore", invalid="ignore"):
-        distance = np.einsum("ij,ij->i", v0 - origins, normal) / denom
+        distance = rowdot(v0, normal) / denom
     return distance, normal

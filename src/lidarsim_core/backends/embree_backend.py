@@ -1,34 +1,42 @@
 """Built-in plugin: the Embree backend (Intel Embree through ``embreex``; extra ``embree``).
 
-Embree traces in float32. To keep precision at any scale, each ray's origin is first moved (in
-float64) to just before the mesh's bounding sphere, and after Embree has found the face, the
-distance is recomputed in float64 as the intersection with that face's plane. The result has
-float64 precision for the face found; rays within ~1e-6 relative of a triangle edge may be
-attributed to the neighbouring face or miss a silhouette edge that float64 would hit.
+Embree traces in float32. To keep precision at any scale, the mesh is stored relative to the
+centre of its bounding box (so a mesh far from its body origin keeps float32 resolution), each
+ray's origin is moved (in float64) to just before the mesh's bounding sphere and expressed
+relative to that centre, and after Embree has found the face, the distance is recomputed in
+float64 as the intersection of the original ray with that face's plane. Distances therefore
+have float64 precision for the face found; only the choice of face is float32: rays passing
+within ~1e-6 of the mesh size of a triangle edge may be attributed to the neighbouring face or
+miss a silhouette edge that float64 would hit (:attr:`EmbreeBackend.edge_tolerance_rel`).
 Embree releases the GIL, so chunks of rays run on several threads.
 """
 
 from __future__ import annotations
 
-import os
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from pydantic import Field
 
+from ..chunks import shared_pool, worker_threads
 from ..errors import BackendError
 from ..hookspecs import hookimpl
 from ..mesh import Mesh
+from ..vec3 import add_vector, rowdot, scale_rows
 from .base import BackendOptions, Hits, RayBackend, refine_on_faces
+
+
+#: Fewest rays handed to a thread at once (smaller parts cost more in dispatch than they gain).
+_MIN_PART = 4096
 
 
 class EmbreeOptions(BackendOptions):
     """Options of the Embree backend."""
 
-    threads: int = Field(0, ge=0, description="Worker threads; 0 = one per CPU core.")
-    chunk_rays: int = Field(65536, ge=1024, description="Rays per task handed to a thread.")
+    threads: int = Field(0, ge=0, description="Worker threads; 0 = LIDARSIM_THREADS, else one "
+                                              "per CPU core.")
+    chunk_rays: int = Field(65536, ge=1024, description="Most rays per task handed to a thread.")
 
 
 @dataclass
@@ -40,14 +48,17 @@ class _PreparedEmbree:
 
 
 class EmbreeBackend(RayBackend):
-    """Intel Embree (embreex) ray caster, float32 traversal with float64 refinement, multi-threaded."""
+    """Intel Embree (embreex) ray caster: float32 traversal, float64 distances, all cores."""
 
     name = "embree"
     Options = EmbreeOptions
     options: EmbreeOptions
     precision = ("float32 traversal; distance recomputed in float64 on the hit face's plane "
                  "(exact to ~1e-12 relative); hit/miss may differ from float64 within ~1e-6 "
-                 "relative of triangle edges.")
+                 "of the mesh size from triangle edges.")
+    distance_rtol = 1e-9
+    edge_tolerance_rel = 1e-6
+    thread_safe = True  # a committed Embree scene is read-only
 
     @classmethod
     def is_available(cls) -> tuple[bool, str]:
@@ -64,54 +75,64 @@ class EmbreeBackend(RayBackend):
         from embreex import rtcore_scene
         from embreex.mesh_construction import TriangleMesh
 
-        scene = rtcore_scene.EmbreeScene()
-        TriangleMesh(scene, np.ascontiguousarray(mesh.triangles, dtype=np.float32))
         lo, hi = mesh.bounds
         center = (lo + hi) / 2
         radius = float(np.linalg.norm(hi - lo) / 2) * (1 + 1e-6) + 1e-9
+        scene = rtcore_scene.EmbreeScene()
+        # relative to the box centre: float32 then resolves the mesh's own size, not its offset
+        TriangleMesh(scene, np.ascontiguousarray(mesh.triangles - center, dtype=np.float32))
         return _PreparedEmbree(scene, mesh, center, radius)
 
     def _threads(self) -> int:
-        return self.options.threads or os.cpu_count() or 1
+        return self.options.threads or worker_threads()
 
     def intersect(self, prepared: _PreparedEmbree, origins: np.ndarray,
                   directions: np.ndarray) -> Hits:
-        eps = self.options.epsilon_m
-        # start each ray just before the bounding sphere (float64), so float32 sees small numbers
-        along = np.einsum("ij,ij->i", prepared.center - origins, directions)
-        shift = np.maximum(along - prepared.radius, eps)
-        start = origins + shift[:, None] * directions
-        start32 = np.ascontiguousarray(start, dtype=np.float32)
-        dir32 = np.ascontiguousarray(directions, dtype=np.float32)
         n = len(origins)
         face = np.empty(n, dtype=np.int64)
-        step = self.options.chunk_rays
-        bounds = [(i, min(i + step, n)) for i in range(0, n, step)]
-
-        def run(bound: tuple[int, int]) -> None:
-            lo, hi = bound
-            face[lo:hi] = prepared.scene.run(start32[lo:hi], dir32[lo:hi])
-
-        threads = min(self._threads(), len(bounds))
-        if threads <= 1:
-            for bound in bounds:
-                run(bound)
-        else:
-            with ThreadPoolExecutor(threads) as pool:
-                list(pool.map(run, bounds))
-        hits = face >= 0
         distance = np.full(n, np.nan)
         normal = np.full((n, 3), np.nan)
-        d, nrm = refine_on_faces(prepared.mesh, face[hits], origins[hits], directions[hits])
-        distance[hits] = d
-        normal[hits] = nrm
-        # a refined distance at or below epsilon means a grazing float32 artefact: count a miss
-        bad = hits.copy()
-        bad[hits] = ~(d > eps)
-        face[bad] = -1
-        distance[bad] = np.nan
-        normal[bad] = np.nan
+        threads = self._threads()
+        # about four parts per thread balance rays that hit (slow) against misses (fast)
+        step = min(self.options.chunk_rays, max(_MIN_PART, -(-n // (4 * threads))))
+        bounds = [(lo, min(lo + step, n)) for lo in range(0, n, step)]
+        out = (face, distance, normal)
+        if threads <= 1 or len(bounds) == 1:
+            for lo, hi in bounds:
+                self._cast_part(prepared, origins, directions, lo, hi, out)
+        else:
+            pool = shared_pool(threads)
+            for job in [pool.submit(self._cast_part, prepared, origins, directions, lo, hi, out)
+                        for lo, hi in bounds]:
+                job.result()
         return Hits(distance, face, normal)
+
+    def _cast_part(self, prepared: _PreparedEmbree, origins: np.ndarray,
+                   directions: np.ndarray, lo: int, hi: int,
+                   out: tuple[np.ndarray, np.ndarray, np.ndarray]) -> None:
+        """Cast rays ``lo:hi`` and write their hits into ``out`` (runs on a worker thread)."""
+        eps = self.options.epsilon_m
+        o, d = origins[lo:hi], directions[lo:hi]
+        # start each ray just before the bounding sphere, relative to the mesh centre (float64),
+        # so that float32 only ever sees coordinates of the mesh's own size
+        rel = add_vector(o, -prepared.center)
+        shift = rowdot(rel, d)
+        np.negative(shift, out=shift)
+        shift -= prepared.radius
+        np.maximum(shift, eps, out=shift)
+        rel += scale_rows(d, shift)
+        face = prepared.scene.run(rel.astype(np.float32), d.astype(np.float32))
+        hit = np.flatnonzero(face >= 0)
+        f = face[hit].astype(np.int64)
+        dist, nrm = refine_on_faces(prepared.mesh, f, o[hit], d[hit])
+        # a refined distance at or below epsilon is a grazing float32 artefact: count a miss
+        good = dist > eps
+        hit, f, dist, nrm = hit[good], f[good], dist[good], nrm[good]
+        face_out, distance_out, normal_out = out
+        face_out[lo:hi] = -1
+        face_out[lo + hit] = f
+        distance_out[lo + hit] = dist
+        normal_out[lo + hit] = nrm
 
 
 @hookimpl

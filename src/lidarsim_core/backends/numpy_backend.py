@@ -25,6 +25,9 @@ class NumpyBackend(RayBackend):
     Options = NumpyOptions
     options: NumpyOptions
     precision = "float64 Möller–Trumbore: distances exact to ~1e-12 relative."
+    distance_rtol = 1e-9
+    edge_tolerance_rel = 1e-9
+    thread_safe = True  # the BVH is read-only after build
 
     def prepare(self, mesh: Mesh) -> Any:
         from ._bvh import TriangleBVH

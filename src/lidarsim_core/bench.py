@@ -1,0 +1,247 @@
+"""Throughput benchmark: every ray backend, bare Embree and the whole pipeline on the same rays.
+
+Scenes are the embedded demo (Envisat 30 m in front of a Livox MID-70, rose pattern, with the
+datasheet's errors) at two levels of detail: ``envisat`` (medium, ~10k triangles) and
+``envisat-fine`` (~96k triangles). For each scene the rays of one scan, exactly as the
+pipeline casts them (pattern, angular error, frame changes into Envisat's body frame), are
+timed through:
+
+* every available registered backend (``backends``: rays per second of ``backend.cast`` on a
+  prepared mesh; ``backends_1thread`` with ``LIDARSIM_THREADS=1``);
+* bare embreex on those rays in float32, on one thread and on all threads, with no lidarsim
+  code around it (``bare_embree_1thread``, ``bare_embree``): what the hardware can do;
+* the whole simulation, ``Simulation.run_frame`` with the ``auto`` backend, from ray indices
+  to the finished point cloud (``simulate``; ``simulate_1thread`` with ``LIDARSIM_THREADS=1``,
+  ``simulate_by_backend`` for every backend, ``simulate_noiseless`` without the noise
+  models), and its ratio to bare Embree on all threads (``simulate_over_bare``);
+* ``cores_used``: the average number of cores each of these kept busy (process CPU time over
+  wall time).
+
+Most rays of the demo scan miss Envisat (``hit_fraction`` ≈ 0.11), and a miss is cheap for
+every backend; ``backends_hits_only`` gives each backend's rate on the rays that hit.
+
+Each figure is the shortest of several runs, interleaved with the other figures' runs
+(:func:`interleaved_best`), so that load from other work on a shared machine biases no figure
+against another.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import platform
+import time
+from typing import Any, Callable
+
+import numpy as np
+
+from .chunks import shared_pool, worker_threads
+from .mesh import Mesh
+
+#: Benchmark scenes: name → Envisat model detail.
+SCENES: dict[str, str] = {"envisat": "medium", "envisat-fine": "fine"}
+
+
+def interleaved_best(probes: dict[str, Callable[[], Any]], rounds: int
+                     ) -> tuple[dict[str, float], dict[str, float]]:
+    """Shortest wall time (s) of each probe, measured in ``rounds`` interleaved rounds after
+    one warm-up round, and the cores each probe kept busy on average (process CPU time over
+    wall time).
+
+    Running every probe once per round, rather than each probe many times in a row, spreads
+    each probe's samples over the whole run: on a machine shared with other work, every
+    figure then gets the same chance of catching the quiet moments, and their ratios are
+    fair. The cores used show multi-threading at work even when other jobs hold the
+    machine's other cores part of the time.
+    """
+    best = {name: math.inf for name in probes}
+    wall = {name: 0.0 for name in probes}
+    cpu = {name: 0.0 for name in probes}
+    for round_ in range(rounds + 1):
+        for name, probe in probes.items():
+            start, start_cpu = time.perf_counter(), time.process_time()
+            probe()
+            elapsed = time.perf_counter() - start
+            if round_:
+                best[name] = min(best[name], elapsed)
+                wall[name] += elapsed
+                cpu[name] += time.process_time() - start_cpu
+    return best, {name: cpu[name] / wall[name] for name in probes if wall[name] > 0}
+
+
+def scan_rays(sim: Any, frame: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Origins and directions of every ray of ``frame`` in the first target's body frame,
+    exactly as :class:`~lidarsim_core.simulate.Simulation` casts them."""
+    k0, k1 = sim.frame_rays(frame)
+    batch = sim.pattern.rays_for_indices(np.arange(k0, k1, dtype=np.int64))
+    t_frame = sim.scenario.scan.frame_interval(frame)[0]
+    _, bodies = sim._body_rays(batch, sim._noise_contexts(frame), t_frame)
+    origins, directions = bodies[0]
+    return np.ascontiguousarray(origins), np.ascontiguousarray(directions)
+
+
+def bare_embree_probe(mesh: Mesh, origins: np.ndarray, directions: np.ndarray,
+                      threads: int) -> Callable[[], Any] | None:
+    """A function casting the rays with plain embreex in float32 on ``threads`` threads, with
+    no lidarsim code around it (None without embreex)."""
+    try:
+        from embreex import rtcore_scene
+        from embreex.mesh_construction import TriangleMesh
+    except ImportError:
+        return None
+    scene = rtcore_scene.EmbreeScene()
+    TriangleMesh(scene, np.ascontiguousarray(mesh.triangles, dtype=np.float32))
+    o32 = np.ascontiguousarray(origins, dtype=np.float32)
+    d32 = np.ascontiguousarray(directions, dtype=np.float32)
+    n = len(o32)
+    if threads <= 1:
+        return lambda: scene.run(o32, d32)
+    step = max(1024, -(-n // (4 * threads)))
+    bounds = [(lo, min(lo + step, n)) for lo in range(0, n, step)]
+    pool = shared_pool(threads)  # the Embree backend's persistent threads
+
+    def cast() -> None:
+        list(pool.map(lambda b: scene.run(o32[b[0]:b[1]], d32[b[0]:b[1]]), bounds))
+
+    return cast
+
+
+def _with_threads(threads: int | None, func: Callable[[], Any]) -> Any:
+    """Run ``func`` with ``LIDARSIM_THREADS`` set to ``threads`` (None: leave as is)."""
+    if threads is None:
+        return func()
+    before = os.environ.get("LIDARSIM_THREADS")
+    os.environ["LIDARSIM_THREADS"] = str(threads)
+    try:
+        return func()
+    finally:
+        if before is None:
+            del os.environ["LIDARSIM_THREADS"]
+        else:
+            os.environ["LIDARSIM_THREADS"] = before
+
+
+def _core_label(probe: str) -> str:
+    """The name in ``cores_used`` of a probe of :func:`bench_scene`."""
+    kind, _, backend = probe.partition(":")
+    labels = {"backend": backend, "backend1": f"{backend}_1thread",
+              "simulate": f"simulate_{backend}" if backend else "simulate",
+              "simulate1": "simulate_1thread", "noiseless": "simulate_noiseless",
+              "bare": "bare_embree", "bare1": "bare_embree_1thread"}
+    return labels[kind]
+
+
+def _threads_env(threads: int, func: Callable[[], Any]) -> Callable[[], Any]:
+    return lambda: _with_threads(threads, func)
+
+
+def bench_scene(detail: str, *, duration_s: float = 1.0, rounds: int = 12) -> dict[str, Any]:
+    """Benchmark one Envisat scene (see the module docstring for the figures); every figure
+    is the best of ``rounds`` interleaved runs (:func:`interleaved_best`)."""
+    from .demo import demo_scenario
+    from .plugins import get_registry
+    from .simulate import Simulation
+
+    def simulation(backend: str, noise: bool = True) -> Any:
+        run = Simulation(demo_scenario(duration_s=duration_s, detail=detail, backend=backend,
+                                       noise=noise))
+        for target in run.targets:
+            run.backend.prepared(target.mesh)
+        return run
+
+    sim = simulation("auto")
+    mesh = sim.targets[0].mesh
+    origins, directions = scan_rays(sim)
+    n = len(origins)
+    threads = worker_threads()
+    result: dict[str, Any] = {"triangles": int(mesh.n_faces), "rays": int(n),
+                              "duration_s": duration_s, "threads": threads}
+    probes: dict[str, Callable[[], Any]] = {}
+    rays: dict[str, int] = {}
+    build: dict[str, float] = {}
+    hit_fraction = None
+    for entry in get_registry().iter("ray_backend"):
+        if not entry.obj.is_available()[0]:
+            continue
+        name, backend = entry.name, entry.obj.from_config({})
+        start = time.perf_counter()
+        backend.prepare(mesh)
+        build[name] = time.perf_counter() - start
+        backend.prepared(mesh)
+        hit = backend.cast(mesh, origins, directions).hit
+        hit_fraction = float(hit.mean())
+        o_hit, d_hit = origins[hit], directions[hit]
+
+        def cast(b: Any = backend, o: np.ndarray = origins, d: np.ndarray = directions) -> Any:
+            return b.cast(mesh, o, d)
+
+        probes[f"backend:{name}"], rays[f"backend:{name}"] = cast, n
+        probes[f"backend1:{name}"], rays[f"backend1:{name}"] = _threads_env(1, cast), n
+        # the same on the rays that hit: most of a scan misses the satellite
+        probes[f"hits:{name}"] = lambda b=backend, o=o_hit, d=d_hit: b.cast(mesh, o, d)
+        rays[f"hits:{name}"] = len(o_hit)
+        if name != sim.backend.name:
+            probes[f"simulate:{name}"] = lambda run=simulation(name): run.run_frame(0)
+            rays[f"simulate:{name}"] = n
+    for label, count in (("bare1", 1), ("bare", threads)):
+        probe = bare_embree_probe(mesh, origins, directions, count)
+        if probe is not None:
+            probes[label], rays[label] = probe, n
+    probes["simulate"], rays["simulate"] = (lambda: sim.run_frame(0)), n
+    probes["simulate1"] = _threads_env(1, lambda: sim.run_frame(0))
+    rays["simulate1"] = n
+    noiseless = simulation("auto", noise=False)
+    probes["noiseless"], rays["noiseless"] = (lambda: noiseless.run_frame(0)), n
+    best, cores = interleaved_best(probes, rounds)
+    rate = {key: rays[key] / seconds for key, seconds in best.items()}
+
+    def prefixed(prefix: str) -> dict[str, float]:
+        return {k.split(":", 1)[1]: v for k, v in rate.items() if k.startswith(prefix + ":")}
+
+    result.update({
+        "hit_fraction": hit_fraction, "backends": prefixed("backend"),
+        "backends_1thread": prefixed("backend1"), "backends_hits_only": prefixed("hits"),
+        "build_s": build, "bare_embree_1thread": rate.get("bare1"),
+        "bare_embree": rate.get("bare"), "simulate_backend": sim.backend.name,
+        "simulate": rate["simulate"], "simulate_1thread": rate["simulate1"],
+        "simulate_noiseless": rate["noiseless"],
+        "cores_used": {_core_label(key): round(c, 2) for key, c in cores.items()
+                       if not key.startswith("hits:")},
+        "simulate_by_backend": {**prefixed("simulate"), sim.backend.name: rate["simulate"]},
+    })
+    bare = result["bare_embree"]
+    result["simulate_over_bare"] = result["simulate"] / bare if bare else None
+    return result
+
+
+def run_benchmark(*, quick: bool = False, scenes: dict[str, str] | None = None,
+                  duration_s: float | None = None) -> dict[str, Any]:
+    """Benchmark every scene; ``quick`` scans 0.2 s with fewer repetitions (a smoke test).
+
+    ``scenes`` (name → Envisat detail) and ``duration_s`` override :data:`SCENES` and the
+    scan time.
+
+    Returns
+    -------
+    dict
+        ``{"machine": {...}, "scenes": {SCENE: {"triangles", "rays", "backends": {NAME:
+        rays_per_s}, "bare_embree_1thread", "bare_embree", "simulate",
+        "simulate_over_bare", ...}}}``; Embree figures are None without embreex.
+    """
+    from ._version import __version__
+
+    try:
+        import embreex
+
+        embree_version = getattr(embreex, "__version__", "installed")
+    except ImportError:
+        embree_version = None
+    machine = {"cpus": os.cpu_count(), "threads": worker_threads(),
+               "python": platform.python_version(), "numpy": np.__version__,
+               "embreex": embree_version, "lidarsim": __version__,
+               "processor": platform.processor() or platform.machine()}
+    duration, rounds = (0.2, 3) if quick else (1.0, 12)
+    duration = duration_s or duration
+    return {"machine": machine, "quick": quick,
+            "scenes": {name: bench_scene(detail, duration_s=duration, rounds=rounds)
+                       for name, detail in (scenes or SCENES).items()}}

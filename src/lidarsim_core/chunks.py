@@ -1,0 +1,110 @@
+"""Helpers of the simulation hot path: ordered parallel processing of ray pieces, and pose
+transforms that reuse one rotation matrix for every ray of a piece.
+
+NumPy, SciPy and Embree release the GIL inside their loops, so pieces of a frame processed on
+a few threads overlap pattern generation, noise, frame changes and ray casting on all cores.
+Every ray's result depends only on its own index, so the outcome does not depend on the piece
+size or the number of threads.
+
+Environment variables
+---------------------
+``LIDARSIM_THREADS``
+    Threads used by the simulation pipeline and by multi-threaded backends (default: one per
+    CPU core; ``1`` runs everything on the calling thread).
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import threading
+from collections import deque
+from concurrent.futures import Future, ThreadPoolExecutor
+from typing import Callable, Iterable, Iterator, TypeVar
+
+import numpy as np
+
+from .poses import Poses
+
+T = TypeVar("T")
+R = TypeVar("R")
+
+
+_pools: dict[int, ThreadPoolExecutor] = {}
+_pools_lock = threading.Lock()
+
+
+@functools.lru_cache(maxsize=1)
+def _cpu_count() -> int:
+    return os.cpu_count() or 1
+
+
+def worker_threads() -> int:
+    """Threads to use: ``LIDARSIM_THREADS`` if set to a positive integer, else the CPU count."""
+    value = os.environ.get("LIDARSIM_THREADS", "").strip()
+    if value.isdigit() and int(value) > 0:
+        return int(value)
+    return _cpu_count()
+
+
+def shared_pool(threads: int) -> ThreadPoolExecutor:
+    """A process-wide pool of ``threads`` threads, created on first use and kept (starting
+    threads for every call would cost as much as casting a few thousand rays)."""
+    with _pools_lock:
+        pool = _pools.get(threads)
+        if pool is None:
+            pool = _pools[threads] = ThreadPoolExecutor(threads,
+                                                        thread_name_prefix="lidarsim-cast")
+        return pool
+
+
+def ordered_map(func: Callable[[T], R], items: Iterable[T], workers: int) -> Iterator[R]:
+    """``map(func, items)`` on ``workers`` threads, yielding results in order.
+
+    At most ``workers + 1`` items are in flight, so memory stays bounded; closing the
+    iterator early cancels what has not started.
+    """
+    if workers <= 1:
+        yield from map(func, items)
+        return
+    source = iter(items)
+    pool = ThreadPoolExecutor(workers, thread_name_prefix="lidarsim")
+    pending: deque[Future] = deque()
+    try:
+        for item in source:
+            pending.append(pool.submit(func, item))
+            if len(pending) > workers:
+                break
+        while pending:
+            result = pending.popleft().result()
+            for item in source:
+                pending.append(pool.submit(func, item))
+                break
+            yield result
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
+
+
+def split_range(start: int, stop: int, size: int) -> list[tuple[int, int]]:
+    """``[start, stop)`` cut into consecutive pieces of at most ``size``."""
+    return [(lo, min(lo + size, stop)) for lo in range(start, stop, size)]
+
+
+def rotate(poses: Poses, vectors: np.ndarray, *, inverse: bool = False) -> np.ndarray:
+    """Rotate (N, 3) vectors by ``poses`` (body → scene, or back with ``inverse``).
+
+    A single pose is applied to every row as one matrix product, as SciPy does for a single
+    rotation (ten times faster than N copies of the rotation; equal to ~1 ulp).
+    """
+    if len(poses) != 1:
+        return poses.rotate_inverse(vectors) if inverse else poses.rotate(vectors)
+    matrix = poses.rotation.as_matrix().reshape(3, 3)
+    # v @ M.T rotates by M; v @ M rotates by M⁻¹ = Mᵀ (contiguous right operands for BLAS)
+    return vectors @ (matrix if inverse else np.ascontiguousarray(matrix.T))
+
+
+def to_body(poses: Poses, points: np.ndarray) -> np.ndarray:
+    """Map (N, 3) (or (1, 3)) scene points into the body frame of ``poses``."""
+    if len(poses) != 1:
+        return poses.apply_inverse(points)
+    return rotate(poses, points - poses.position, inverse=True)
