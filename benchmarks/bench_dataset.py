@@ -81,7 +81,7 @@ def tree_digest(root: Path) -> str:
 
 def _warm() -> bool:
     from lidarsim_core.plugins import get_registry
-    from lidarsim_core.simulate import Simulation  # noqa: F401
+    from lidarsim_core.pipeline import Simulation  # noqa: F401
 
     get_registry()
     return True

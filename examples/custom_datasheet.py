@@ -23,7 +23,7 @@ import yaml
 from lidarsim_core.datasheet import load_datasheet
 from lidarsim_core.errors import ConfigError
 from lidarsim_core.scenario import scenario_from_dict
-from lidarsim_core.simulate import simulate
+from lidarsim_core.pipeline import simulate
 
 OUT = Path(sys.argv[1] if len(sys.argv) > 1 else "custom-sensor-out")
 DURATION_S = float(os.environ.get("LIDARSIM_EXAMPLE_DURATION", "0.5"))

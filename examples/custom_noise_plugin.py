@@ -54,7 +54,7 @@ def main() -> None:
     """Simulate the demo scene with the datasheet's errors plus a 5 cm range bias."""
     import lidarsim_core as ls
     from lidarsim_core.plugins import build_plugin_manager, build_registry
-    from lidarsim_core.simulate import Simulation
+    from lidarsim_core.pipeline import Simulation
 
     manager = build_plugin_manager()                 # built-ins and installed plugins
     manager.register_plugin(sys.modules[__name__], "range-bias-example", "this script")

@@ -68,7 +68,7 @@ print(f"3. scene: Envisat body origin at {scenario.targets[0].pose.position_m} m
 # --8<-- [end:scenario]
 
 # --8<-- [start:simulate]
-from lidarsim_core.simulate import Simulation
+from lidarsim_core.pipeline import Simulation
 
 noisy = Simulation(scenario).run_frame(0)
 clean = Simulation(scenario.with_updates(noise=[])).run_frame(0)

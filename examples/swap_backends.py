@@ -19,7 +19,7 @@ import numpy as np
 
 import lidarsim_core as ls
 from lidarsim_core.plugins import get_registry
-from lidarsim_core.simulate import Simulation
+from lidarsim_core.pipeline import Simulation
 
 DURATION_S = float(os.environ.get("LIDARSIM_EXAMPLE_DURATION", "0.5"))
 

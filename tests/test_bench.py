@@ -34,7 +34,7 @@ def test_benchmark_measures_every_backend_on_the_scan_rays():
 
 def test_scan_rays_are_the_rays_the_pipeline_casts():
     from lidarsim_core.demo import demo_scenario
-    from lidarsim_core.simulate import Simulation
+    from lidarsim_core.pipeline import Simulation
 
     sim = Simulation(demo_scenario(duration_s=0.01, detail="coarse", backend="numpy"))
     origins, directions = bench.scan_rays(sim)

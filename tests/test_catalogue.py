@@ -18,7 +18,7 @@ from lidarsim_core.cli import app
 from lidarsim_core.demo import demo_scenario
 from lidarsim_core.patterns.coverage import pattern_for
 from lidarsim_core.plugins import get_registry, package_data_dir
-from lidarsim_core.simulate import Simulation
+from lidarsim_core.pipeline import Simulation
 
 REQUIRED = {
     "livox-mid70": "risley", "livox-mid70-rose": "rose", "livox-mid40": "risley",

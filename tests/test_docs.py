@@ -240,7 +240,7 @@ def test_plugin_guide_scan_pattern_example_works():
     from helpers import datasheet
 
     from lidarsim_core.patterns.geometry import off_axis_angle
-    from lidarsim_core.simulate import Simulation
+    from lidarsim_core.pipeline import Simulation
 
     registry, _ = _registry_with(_plugin_examples()["scan_pattern"], "pattern")
     sheet = datasheet(scan_pattern={"name": "doc-circle", "options": {"turn_period_s": 0.02}})
@@ -251,7 +251,7 @@ def test_plugin_guide_scan_pattern_example_works():
 
 
 def test_plugin_guide_noise_model_example_works():
-    from lidarsim_core.simulate import Simulation
+    from lidarsim_core.pipeline import Simulation
 
     registry, _ = _registry_with(_plugin_examples()["noise_model"], "noise")
     scen = _scenario(noise=[{"name": "doc-growing-range",
@@ -263,7 +263,7 @@ def test_plugin_guide_noise_model_example_works():
 
 
 def test_plugin_guide_exporter_example_works(tmp_path):
-    from lidarsim_core.simulate import Simulation
+    from lidarsim_core.pipeline import Simulation
 
     registry, module = _registry_with(_plugin_examples()["exporter"], "exporter")
     cloud = Simulation(_scenario(), registry=registry).run_frame(0)
@@ -275,7 +275,7 @@ def test_plugin_guide_exporter_example_works(tmp_path):
 
 
 def test_plugin_guide_target_model_example_works():
-    from lidarsim_core.simulate import Simulation
+    from lidarsim_core.pipeline import Simulation
 
     registry, _ = _registry_with(_plugin_examples()["target_model"], "target")
     scen = _scenario(targets=[{"name": "p", "mesh": {"model": "doc-two-panels",
@@ -300,7 +300,7 @@ def test_plugin_guide_trajectory_example_works():
 def test_vendor_guide_datasheet_and_scenario_work(tmp_path):
     from lidarsim_core.datasheet import load_datasheet
     from lidarsim_core.scenario import load_scenario
-    from lidarsim_core.simulate import Simulation
+    from lidarsim_core.pipeline import Simulation
 
     blocks = re.findall(r"```yaml\n(.*?)```", (DOCS / "vendor_guide.md").read_text(), re.S)
     (tmp_path / "my-lidar.yaml").write_text(blocks[0])
@@ -330,4 +330,4 @@ def test_site_builds_with_warnings_as_errors(tmp_path):
     site = tmp_path / "site"
     assert (site / "reference" / "sensors" / "index.html").is_file()
     api = (site / "api" / "index.html").read_text()
-    assert "lidarsim_core.simulate.Simulation" in api and "run_frame" in api
+    assert "lidarsim_core.pipeline.Simulation" in api and "run_frame" in api

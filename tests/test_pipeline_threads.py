@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import importlib
 import threading
 
 import numpy as np
@@ -11,10 +10,8 @@ import pytest
 from lidarsim_core.backends.numpy_backend import NumpyBackend
 from lidarsim_core.demo import demo_scenario
 from lidarsim_core.scenario import scenario_from_dict
-from lidarsim_core.simulate import Simulation
-
-# the module (``lidarsim_core.simulate`` may be shadowed by the function of the same name)
-simulate_module = importlib.import_module("lidarsim_core.simulate")
+from lidarsim_core import pipeline as pipeline_module
+from lidarsim_core.pipeline import Simulation
 
 
 def _tumbling(backend: str):
@@ -42,7 +39,7 @@ def test_threads_pieces_and_chunks_do_not_change_the_cloud(scene, monkeypatch):
     reference = sim.run_frame(0)
     assert len(reference) > 100
     monkeypatch.setenv("LIDARSIM_THREADS", "3")
-    monkeypatch.setattr(simulate_module, "PIECE_RAYS", 701)
+    monkeypatch.setattr(pipeline_module, "PIECE_RAYS", 701)
     for chunk in (None, 1999):
         cloud = sim.run_frame(0, chunk)
         for name, column in reference.columns.items():
@@ -65,6 +62,6 @@ def test_backend_that_is_not_thread_safe_is_called_from_one_thread(monkeypatch):
     sim = Simulation(demo_scenario(duration_s=0.05, detail="coarse", backend="numpy"))
     sim.backend = _SingleThreaded()
     monkeypatch.setenv("LIDARSIM_THREADS", "4")
-    monkeypatch.setattr(simulate_module, "PIECE_RAYS", 500)
+    monkeypatch.setattr(pipeline_module, "PIECE_RAYS", 500)
     sim.run_frame(0)
     assert _SingleThreaded.seen == {threading.get_ident()}

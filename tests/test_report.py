@@ -22,7 +22,7 @@ from lidarsim_core.patterns.geometry import directions_from_az_el, directions_fr
 from lidarsim_core.report.colouring import point_colours
 from lidarsim_core.report.run import load_run
 from lidarsim_core.report.stats import angular_error_components, fit_normal, range_errors
-from lidarsim_core.simulate import simulate
+from lidarsim_core.pipeline import simulate
 
 FIGURES_2D = ("fig05_pattern.png", "fig06_angular_error.png", "fig09_range_error.png",
               "coverage.png")

@@ -21,7 +21,7 @@ from lidarsim_core.errors import ConfigError
 from lidarsim_core.groundtruth import (pose_from_record, read_ground_truth,
                                        sequence_frame_infos, write_ground_truth)
 from lidarsim_core.scenario import ScanConfig, load_scenario, scenario_from_dict
-from lidarsim_core.simulate import Simulation
+from lidarsim_core.pipeline import Simulation
 from lidarsim_core.trajectories.orbit import mean_motion_from_altitude
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "scenarios"

@@ -29,7 +29,7 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from .plugins import get_registry
     from .pointcloud import FrameInfo, PointCloud
     from .scenario import Scenario, load_scenario
-    from .simulate import Simulation, simulate
+    from .pipeline import Simulation, simulate
 
 _LAZY: dict[str, str] = {
     "get_sensor": "builtin_sensors",
@@ -41,7 +41,7 @@ _LAZY: dict[str, str] = {
     "get_registry": "plugins",
     "PointCloud": "pointcloud", "FrameInfo": "pointcloud",
     "Scenario": "scenario", "load_scenario": "scenario",
-    "Simulation": "simulate", "simulate": "simulate",
+    "Simulation": "pipeline", "simulate": "pipeline",
 }
 
 __all__ = ["__version__", *sorted(_LAZY)]

@@ -71,7 +71,7 @@ def interleaved_best(probes: dict[str, Callable[[], Any]], rounds: int
 
 def scan_rays(sim: Any, frame: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """Origins and directions of every ray of ``frame`` in the first target's body frame,
-    exactly as :class:`~lidarsim_core.simulate.Simulation` casts them."""
+    exactly as :class:`~lidarsim_core.pipeline.Simulation` casts them."""
     k0, k1 = sim.frame_rays(frame)
     batch = sim.pattern.rays_for_indices(np.arange(k0, k1, dtype=np.int64))
     t_frame = sim.scenario.scan.frame_interval(frame)[0]
@@ -140,7 +140,7 @@ def bench_scene(detail: str, *, duration_s: float = 1.0, rounds: int = 12) -> di
     is the best of ``rounds`` interleaved runs (:func:`interleaved_best`)."""
     from .demo import demo_scenario
     from .plugins import get_registry
-    from .simulate import Simulation
+    from .pipeline import Simulation
 
     def simulation(backend: str, noise: bool = True) -> Any:
         run = Simulation(demo_scenario(duration_s=duration_s, detail=detail, backend=backend,

@@ -86,7 +86,7 @@ def _demo(out: Path, duration: float, backend: str, detail: str, seed: int) -> N
 
     from .demo import demo_scenario
     from .errors import OutputError
-    from .simulate import Simulation
+    from .pipeline import Simulation
 
     if out.exists() and not out.is_dir():
         raise OutputError("--out must be a directory", source=out)
@@ -177,7 +177,7 @@ def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwri
     from .errors import OutputError
     from .io.base import exporter_for
     from .scenario import load_scenario
-    from .simulate import Simulation
+    from .pipeline import Simulation
 
     scenario = load_scenario(path)
     changes: dict[str, Any] = {}

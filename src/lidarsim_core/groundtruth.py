@@ -53,7 +53,7 @@ from .poses import Poses
 if TYPE_CHECKING:  # pragma: no cover
     from .pointcloud import FrameInfo
     from .scenario import Scenario
-    from .simulate import Simulation
+    from .pipeline import Simulation
 
 FORMAT_NAME = "lidarsim-poses"
 FORMAT_VERSION = 1
@@ -211,7 +211,7 @@ def sequence_frame_infos(scenario: "Scenario | Simulation",
                          frames: Sequence[int] | None = None) -> list["FrameInfo"]:
     """Frame metadata of a scenario's frames without casting a ray (poses come from the
     trajectories alone)."""
-    from .simulate import Simulation
+    from .pipeline import Simulation
 
     sim = scenario if isinstance(scenario, Simulation) else Simulation(scenario)
     indices = range(sim.scenario.scan.frames) if frames is None else frames

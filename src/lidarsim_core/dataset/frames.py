@@ -69,7 +69,7 @@ def _simulation(job: FrameJob) -> Any:
     import json
 
     from ..scenario import scenario_from_dict
-    from ..simulate import Simulation
+    from ..pipeline import Simulation
 
     key = job.cache_key
     if key in _simulations:

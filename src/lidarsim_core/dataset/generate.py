@@ -174,7 +174,7 @@ def _write_text(path: Path, text: str) -> None:
 
 
 def _prepare_sequence(seq: _Sequence, suffix: str) -> None:
-    from ..simulate import Simulation
+    from ..pipeline import Simulation
 
     _write_text(seq.copy_path, yaml.safe_dump(seq.data, sort_keys=False))
     seq.scenario = scenario_from_dict(seq.data, source=seq.copy_path)

@@ -29,7 +29,7 @@ from ..scenario import Scenario, scenario_from_dict
 
 if TYPE_CHECKING:
     from ..io.base import Exporter
-    from ..simulate import Simulation
+    from ..pipeline import Simulation
 
 #: Packages whose versions can change the bytes of a frame.
 NUMERIC_PACKAGES = ("numpy", "scipy", "trimesh", "embreex")
@@ -51,7 +51,7 @@ def normalize_scenario(scenario: Scenario, registry: Registry) -> Scenario:
 
     The result keeps the original source file, so relative mesh paths still resolve.
     """
-    from ..simulate import resolve_backend
+    from ..pipeline import resolve_backend
 
     data = scenario.model_dump(mode="json")
     sheet = scenario.sensor.datasheet

@@ -19,7 +19,7 @@ from ..groundtruth import frame_record, ground_truth
 from ..io.base import atomic_output
 
 if TYPE_CHECKING:
-    from ..simulate import Simulation
+    from ..pipeline import Simulation
 
 _SPOOL_BYTES = 8 * 2 ** 20
 

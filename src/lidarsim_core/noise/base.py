@@ -87,11 +87,16 @@ class NoiseModel(Component):
 def perpendicular_basis(directions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Two unit vectors ``u``, ``v`` perpendicular to each (N, 3) unit direction and to each
     other, chosen deterministically (``u`` horizontal where possible)."""
-    helper = np.zeros_like(directions)
-    near_vertical = np.abs(directions[:, 2]) > 0.9
-    helper[~near_vertical, 2] = 1.0
-    helper[near_vertical, 1] = 1.0
-    u = np.cross(helper, directions)
-    u /= np.linalg.norm(u, axis=1, keepdims=True)
-    v = np.cross(directions, u)
+    x, y, z = directions[:, 0], directions[:, 1], directions[:, 2]
+    near_vertical = np.abs(z) > 0.9
+    # u = helper × d with helper +Z (+Y near the vertical), written out per component
+    ux = np.where(near_vertical, z, -y)
+    uy = np.where(near_vertical, 0.0, x)
+    uz = np.where(near_vertical, -x, 0.0)
+    norm = np.sqrt(ux * ux + uy * uy + uz * uz)
+    ux /= norm
+    uy /= norm
+    uz /= norm
+    u = np.stack([ux, uy, uz], axis=-1)
+    v = np.stack([y * uz - z * uy, z * ux - x * uz, x * uy - y * ux], axis=-1)
     return u, v

@@ -27,7 +27,7 @@ from ..errors import ConfigError
 from ..pointcloud import PointCloud
 from ..poses import Poses
 from ..scenario import Scenario, load_scenario
-from ..simulate import Simulation
+from ..pipeline import Simulation
 
 #: Scenario file names looked for in a run directory, in order.
 SCENARIO_NAMES = ("scenario.yaml", "scenario.yml", "scenario.toml", "scenario.json")
