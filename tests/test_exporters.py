@@ -87,10 +87,12 @@ def test_las_and_laz_read_by_laspy(cloud, tmp_path):
         np.testing.assert_array_equal(las.return_number, cloud["return_number"])
         np.testing.assert_array_equal(las.number_of_returns, cloud["number_of_returns"])
         np.testing.assert_array_equal(las.classification, cloud["part"] + 64)
-        np.testing.assert_array_equal(las.intensity, 0)  # no intensity column yet
+        # intensity (apparent reflectivity, 0..1 for diffuse surfaces) scaled to 0..65535
+        np.testing.assert_array_equal(las.intensity, np.round(np.clip(
+            cloud["intensity"].astype(np.float64), 0, 1) * 65535))
         extras = set(las.point_format.extra_dimension_names)
         expected = set(POINT_FIELDS) - {"x", "y", "z", "timestamp", "return_number",
-                                        "number_of_returns", "part"}
+                                        "number_of_returns", "part", "intensity"}
         assert extras == expected
         for name in expected:
             assert las[name].dtype == np.dtype(POINT_FIELDS[name]), name
@@ -257,7 +259,7 @@ def test_new_columns_flow_through_exporters(cloud, tmp_path):
     write_cloud(extended, tmp_path / "c.npz")
     np.testing.assert_array_equal(np.load(tmp_path / "c.npz")["intensity"], intensity)
     write_cloud(extended, tmp_path / "c.csv")
-    assert (tmp_path / "c.csv").read_text().split("\n")[0].endswith(",intensity")
+    assert "intensity" in (tmp_path / "c.csv").read_text().split("\n")[0].split(",")
 
 
 def test_las_with_more_parts_than_classes_keeps_part_as_extra_bytes(cloud, tmp_path):

@@ -22,18 +22,25 @@ schema_app = typer.Typer(no_args_is_help=True, help="Print JSON schemas of the i
 app.add_typer(schema_app, name="schema")
 
 _state = {"debug": False}
+#: Bytes of points ``lidarsim simulate`` holds in memory per frame before spilling them to a
+#: temporary file (the frame is then streamed to its output file).
+SPOOL_MEMORY_BYTES = 64 * 2 ** 20
 
 
-@app.callback()
-def _root(debug: bool = typer.Option(False, "--debug", help="Show tracebacks on errors."),
-          version: bool = typer.Option(False, "--version", help="Print the version and exit.")
-          ) -> None:
-    _state["debug"] = debug
-    if version:
+def _print_version(value: bool) -> None:
+    if value:
         from ._version import __version__
 
         typer.echo(f"lidarsim-core {__version__}")
         raise typer.Exit()
+
+
+@app.callback()
+def _root(debug: bool = typer.Option(False, "--debug", help="Show tracebacks on errors."),
+          version: bool = typer.Option(False, "--version", callback=_print_version,
+                                       is_eager=True, help="Print the version and exit.")
+          ) -> None:
+    _state["debug"] = debug
 
 
 def _console(stderr: bool = False):
@@ -47,27 +54,41 @@ def _fail(message: str, code: int) -> None:
     raise typer.Exit(code)
 
 
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split())
+
+
 def run_guarded(func: Callable[[], Any]) -> Any:
-    """Run a command body, turning lidarsim errors into one line and an exit code."""
+    """Run a command body, turning lidarsim errors into one line and an exit code.
+
+    Exit codes: 2 for a user error or a failing plugin (:class:`UserInputError`,
+    :class:`~lidarsim_core.errors.PluginError`: fix the input or the installed plugins), 1 for
+    any other failure, 130 after Ctrl-C (SIGINT), 143 after SIGTERM.
+    """
+    from .errors import PluginError
+    from .guard import SIGTERM_EXIT_CODE, Terminated
+
     try:
         return func()
     except typer.Exit:
         raise
-    except UserInputError as exc:
+    except (UserInputError, PluginError) as exc:
         if _state["debug"]:
             raise
-        _fail(str(exc), 2)
+        _fail(_one_line(exc), 2)
     except LidarsimError as exc:
         if _state["debug"]:
             raise
-        _fail(str(exc), 1)
+        _fail(_one_line(exc), 1)
+    except Terminated:
+        _fail("terminated (SIGTERM); no partial output was kept", SIGTERM_EXIT_CODE)
     except KeyboardInterrupt:
         _fail("interrupted; no partial output was kept", 130)
     except Exception as exc:  # an unexpected bug: short line unless --debug
         if _state["debug"]:
             raise
-        _fail(f"internal error: {type(exc).__name__}: {exc} (rerun with --debug for the "
-              "traceback)", 1)
+        _fail(f"internal error: {type(exc).__name__}: {_one_line(exc)} (rerun with --debug "
+              "for the traceback)", 1)
 
 
 # ---- demo -------------------------------------------------------------------------------
@@ -174,8 +195,13 @@ def simulate(scenario: Path = typer.Argument(..., help="Scenario file (YAML, TOM
 
 def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwrite: bool,
               backend: str | None, seed: int | None) -> None:
-    from .errors import OutputError
-    from .io.base import exporter_for
+    import os
+
+    from .errors import ConfigError, OutputError
+    from .guard import check_sensor_outside, guard_components, guard_exporter
+    from .io.base import exporter_for, write_points_file
+    from .io.paths import frame_paths, has_frame_field
+    from .io.points import PointSpool
     from .scenario import load_scenario
     from .pipeline import Simulation
 
@@ -187,26 +213,45 @@ def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwri
         changes["seed"] = seed
     if changes:
         scenario = scenario.with_updates(**changes)
-    frames = [frame] if frame is not None else list(range(scenario.scan.frames))
-    templated = "{frame" in str(out)
+    n_frames = scenario.scan.frames
+    if frame is not None and not 0 <= frame < n_frames:
+        raise ConfigError(f"--frame {frame} is outside 0..{n_frames - 1}", source=path,
+                          field="scan.frames")
+    frames = [frame] if frame is not None else list(range(n_frames))
+    templated = has_frame_field(out)
     if len(frames) > 1 and not templated:
         raise OutputError(f"the scenario has {len(frames)} frames: put '{{frame}}' in --out "
                           "(e.g. cloud_{frame:04d}.ply) or choose one with --frame", source=out)
-    targets = [Path(str(out).format(frame=f)) if templated else out for f in frames]
-    exporter_for(targets[0], fmt)  # unknown format: fail before simulating
+    targets = frame_paths(out, frames) if templated else [out]
+    exporter = exporter_for(targets[0], fmt)  # unknown format: fail before simulating
     for target in targets:
+        if target.is_dir():
+            raise OutputError("output path is a directory", source=target)
         if target.exists() and not overwrite:
             raise OutputError("output file exists (use --overwrite to replace it)", source=target)
-        if not target.parent.is_dir():
-            raise OutputError(f"output directory does not exist: {target.parent}", source=target)
-    sim = Simulation(scenario)
+        parent = target.parent if str(target.parent) else Path(".")
+        if not parent.is_dir():
+            raise OutputError(f"output directory does not exist: {parent}", source=target)
+        if not os.access(parent, os.W_OK | os.X_OK):
+            raise OutputError(f"output directory is not writable: {parent}", source=target)
+    sim = guard_components(Simulation(scenario))
+    guard_exporter(exporter)
     console = _console()
     for f, target in zip(frames, targets):
         t0 = time.perf_counter()
-        cloud = sim.run_frame(f)
-        cloud.save(target, format=fmt, overwrite=overwrite)
-        console.print(f"frame {f}: {len(cloud):,} points from {cloud.frame.rays_emitted:,} rays "
+        check_sensor_outside(sim, f)
+        info = sim.frame_info(f)
+        # stream the frame through a spool (memory, then a temporary file): any size fits
+        with PointSpool(info, memory_limit=SPOOL_MEMORY_BYTES) as spool:
+            spool.extend(sim.iter_chunks(f))
+            write_points_file(spool, target, exporter=exporter, overwrite=overwrite)
+            points = len(spool)
+        console.print(f"frame {f}: {points:,} points from {info.rays_emitted:,} rays "
                       f"in {time.perf_counter() - t0:.2f} s → {target}")
+        if points == 0:
+            console.print(f"note: frame {f} is empty: no ray hit a target within "
+                          f"{sim.sensor.range_min_m:g}–{sim.sensor.range_max_m:g} m (targets "
+                          "out of range, outside the field of view or behind the sensor)")
 
 
 # ---- listings ----------------------------------------------------------------------------
@@ -301,8 +346,11 @@ def _load_command_modules() -> None:
 
 def main(argv: list[str] | None = None) -> None:
     """Console-script entry point."""
+    from .guard import sigterm_as_interrupt
+
     _load_command_modules()
-    app(args=argv, prog_name="lidarsim")
+    with sigterm_as_interrupt():
+        app(args=argv, prog_name="lidarsim")
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -60,6 +60,12 @@ def _bench(as_json: bool, quick: bool) -> None:
                          if k in cores)
         console.print(f"{name} on one thread: {single}; simulate "
                       f"{_rate(s['simulate_1thread'])}. Cores kept busy: {busy}")
+    div = result.get("divergence")
+    if div:
+        console.print(f"Beam divergence, {div['sub_rays']} sub-rays per pulse: "
+                      f"{1e6 * div['time_per_pulse_s']:.2f} µs per pulse against "
+                      f"{1e6 * div['time_per_k_single_rays_s']:.2f} µs for "
+                      f"{div['sub_rays']} single rays (ratio {div['ratio']:.2f}).")
     console.print("backend columns: backend.cast on the scan's rays; bare: plain embreex on "
                   "the same rays in float32; simulate: Simulation.run_frame with the "
                   f"'{next(iter(scenes.values()))['simulate_backend']}' backend, from ray "

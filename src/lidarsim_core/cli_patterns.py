@@ -33,7 +33,7 @@ def _pattern(sensor: str, options: list[str]) -> Any:
         if not sep or not key.strip():
             raise ConfigError(f"--option expects KEY=VALUE, got {item!r}", field="--option")
         overrides[key.strip()] = yaml.safe_load(value)
-    return pattern_for(sheet, overrides)
+    return pattern_for(sheet, overrides, source=sensor)
 
 
 def _check_positive(value: float, flag: str) -> None:

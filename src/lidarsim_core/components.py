@@ -16,9 +16,10 @@ from .errors import ConfigError
 
 
 class ComponentOptions(BaseModel):
-    """Base of every component's options: unknown keys are rejected, models are immutable."""
+    """Base of every component's options: unknown keys are rejected, models are immutable,
+    and infinities and NaN are refused (no option is meaningful at infinity)."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 def first_validation_error(exc: ValidationError, prefix: str = "") -> tuple[str, str]:

@@ -1,6 +1,8 @@
 """Reading configuration files (YAML, TOML, JSON) safely, with errors that name the file.
 
-YAML is read with ``yaml.safe_load`` only: configuration never executes code.
+YAML is read with a ``yaml.SafeLoader`` only (plain data: no tags that build Python objects),
+and a key repeated within one mapping is an error in every format: configuration never executes
+code and never silently drops a value.
 """
 
 from __future__ import annotations
@@ -48,16 +50,21 @@ def parse_config_text(text: str, suffix: str, *, source: str | Path = "<string>"
             import yaml
 
             try:
-                data = yaml.safe_load(text)
+                data = yaml.load(text, Loader=_safe_loader())  # a SafeLoader: plain data only
             except yaml.YAMLError as exc:
                 mark = getattr(exc, "problem_mark", None)
                 where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
                 problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+                if problem.startswith("could not determine a constructor for the tag"):
+                    tag = problem.rsplit(" ", 1)[-1]
+                    raise ConfigError(f"YAML tag {tag}{where} is not allowed: configuration "
+                                      "files hold plain data only", source=source) from None
                 raise ConfigError(f"malformed YAML{where}: {problem}", source=source) from None
         elif suffix == ".toml":
             data = tomllib.loads(text)
         else:
-            data = json.loads(text)
+            data = json.loads(text, object_pairs_hook=_unique_json_keys(source),
+                              parse_constant=_no_json_constant(source))
     except tomllib.TOMLDecodeError as exc:
         raise ConfigError(f"malformed TOML: {exc}", source=source) from None
     except json.JSONDecodeError as exc:
@@ -69,6 +76,62 @@ def parse_config_text(text: str, suffix: str, *, source: str | Path = "<string>"
     return data
 
 
+_LOADER: Any = None
+
+
+def _safe_loader() -> Any:
+    """``yaml.SafeLoader`` that also rejects a key repeated in one mapping (PyYAML would keep
+    the last value silently)."""
+    global _LOADER
+    if _LOADER is not None:
+        return _LOADER
+    import yaml
+    from yaml.constructor import ConstructorError, SafeConstructor
+
+    class UniqueKeySafeLoader(yaml.SafeLoader):
+        pass
+
+    def construct_mapping(loader: Any, node: Any, deep: bool = False) -> Any:
+        seen: set[Any] = set()
+        for key_node, _ in node.value:
+            if key_node.tag == "tag:yaml.org,2002:merge":
+                continue  # '<<' merges may be overridden by explicit keys
+            key = loader.construct_object(key_node, deep=True)
+            try:
+                duplicate = key in seen
+            except TypeError:
+                continue  # unhashable: PyYAML reports it below
+            if duplicate:
+                raise ConstructorError(None, None, f"duplicate key '{key}'",
+                                       key_node.start_mark)
+            seen.add(key)
+        return SafeConstructor.construct_mapping(loader, node, deep=deep)
+
+    UniqueKeySafeLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG,
+                                        construct_mapping)
+    _LOADER = UniqueKeySafeLoader
+    return _LOADER
+
+
+def _unique_json_keys(source: str | Path) -> Any:
+    def pairs(items: list[tuple[str, Any]]) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        for key, value in items:
+            if key in out:
+                raise ConfigError(f"malformed JSON: duplicate key '{key}'", source=source)
+            out[key] = value
+        return out
+
+    return pairs
+
+
+def _no_json_constant(source: str | Path) -> Any:
+    def reject(name: str) -> Any:
+        raise ConfigError(f"malformed JSON: '{name}' is not a JSON number", source=source)
+
+    return reject
+
+
 def validate_model(model: type[BaseModel], data: Any, *, source: str | Path | None,
                    prefix: str = "", context: dict[str, Any] | None = None) -> Any:
     """Validate ``data`` against a pydantic ``model``, turning the first error into a one-line
@@ -77,4 +140,6 @@ def validate_model(model: type[BaseModel], data: Any, *, source: str | Path | No
         return model.model_validate(data, context=context)
     except ValidationError as exc:
         field, msg = first_validation_error(exc, prefix)
-        raise ConfigError(msg, source=source, field=field) from None
+        # a check across fields ('<root>') names its fields in the message itself
+        raise ConfigError(msg, source=source, field=None if field == "<root>" else field) \
+            from None

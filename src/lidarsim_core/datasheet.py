@@ -17,7 +17,7 @@ from .config_io import read_config_file, validate_model
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 class Source(_Strict):
@@ -74,7 +74,19 @@ class SensorDatasheet(_Strict):
     wavelength_nm: float | None = Field(None, gt=0)
     beam_divergence_deg: tuple[float, float] | None = Field(
         None, description="Full beam divergence (horizontal, vertical) in degrees.")
-    range_at_reflectivity: list[RangeAtReflectivity] = Field(default_factory=list)
+    range_at_reflectivity: list[RangeAtReflectivity] = Field(
+        default_factory=list, description="Detection ranges at given target reflectivities "
+                                          "(read as 50 % detection probability at normal "
+                                          "incidence); calibrate the detection model.")
+    range_resolution_m: float | None = Field(
+        None, gt=0, description="Smallest separation of two surfaces that gives two returns "
+                                "(m), about c·τ/2 for a pulse of width τ.")
+    return_mode: Literal["first", "last", "strongest", "dual", "multi"] = Field(
+        "strongest", description="Default return mode (see docs/realism.md).")
+    dual_return: Literal["strongest_last", "first_strongest", "first_last"] = Field(
+        "strongest_last", description="Which two returns the 'dual' mode reports.")
+    max_returns: int = Field(1, ge=1, le=15, description="Most returns the sensor reports "
+                                                         "per pulse ('multi' mode).")
     scan_pattern: ScanPatternSpec
 
     @field_validator("beam_divergence_deg")

@@ -10,6 +10,7 @@ import hashlib
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -35,6 +36,9 @@ class Mesh:
         Names of the parts (labels written into the point record).
     name
         A human-readable name for messages.
+    part_materials
+        Per part, the mesh's own material (a material name or a mapping of material fields,
+        see :mod:`lidarsim_core.materials`) or None; empty when the mesh carries none.
     """
 
     vertices: np.ndarray
@@ -42,13 +46,15 @@ class Mesh:
     face_part: np.ndarray
     part_names: tuple[str, ...]
     name: str = "mesh"
+    part_materials: tuple[Any, ...] = ()
     _cache: dict = field(default_factory=dict, repr=False, compare=False)
 
     @classmethod
     def from_arrays(cls, vertices: np.ndarray, faces: np.ndarray,
                     face_part: np.ndarray | None = None,
                     part_names: tuple[str, ...] | None = None, *, name: str = "mesh",
-                    source: str | None = None) -> "Mesh":
+                    source: str | None = None,
+                    part_materials: tuple[Any, ...] = ()) -> "Mesh":
         """Validate arrays and build a mesh (raises :class:`MeshError` naming ``source``)."""
         where = source or name
         vertices = np.ascontiguousarray(vertices, dtype=np.float64)
@@ -70,7 +76,9 @@ class Mesh:
                                                  (face_part.min() < 0 or
                                                   face_part.max() >= len(part_names))):
             raise MeshError("face part labels do not match the part names", source=where)
-        mesh = cls(vertices, faces, face_part, part_names, name)
+        if part_materials and len(part_materials) != len(part_names):
+            raise MeshError("one material per part is needed", source=where)
+        mesh = cls(vertices, faces, face_part, part_names, name, tuple(part_materials))
         if not np.any(mesh.face_areas > 0):
             raise MeshError("mesh has only degenerate (zero-area) faces", source=where)
         return mesh
@@ -125,6 +133,10 @@ def load_mesh_file(path: str | Path, *, scale: float = 1.0, source: str | None =
                    field: str | None = None) -> Mesh:
     """Read any mesh format trimesh reads; each named object of a scene becomes a part.
 
+    A part whose geometry carries a colour (an OBJ/MTL ``Kd``, a glTF base colour, defined
+    face colours) gets a default material from it
+    (:func:`lidarsim_core.materials.material_from_colour`).
+
     Parameters
     ----------
     path
@@ -149,7 +161,7 @@ def load_mesh_file(path: str | Path, *, scale: float = 1.0, source: str | None =
         loaded = trimesh.load(str(path), process=False)
     except Exception as exc:  # trimesh raises many types for garbage input
         raise MeshError(f"cannot read mesh: {type(exc).__name__}: {exc}", source=where) from None
-    parts: list[tuple[str, np.ndarray, np.ndarray]] = []
+    parts: list[tuple[str, np.ndarray, np.ndarray, Any]] = []
     if isinstance(loaded, trimesh.Scene):
         for node in loaded.graph.nodes_geometry:
             transform, geom_name = loaded.graph[node]
@@ -157,30 +169,51 @@ def load_mesh_file(path: str | Path, *, scale: float = 1.0, source: str | None =
             if not isinstance(geom, trimesh.Trimesh) or len(geom.faces) == 0:
                 continue
             verts = trimesh.transform_points(np.asarray(geom.vertices, dtype=np.float64), transform)
-            parts.append((str(node), verts, np.asarray(geom.faces)))
+            parts.append((str(node), verts, np.asarray(geom.faces), _colour_material(geom)))
     elif isinstance(loaded, trimesh.Trimesh):
         parts.append((path.stem, np.asarray(loaded.vertices, dtype=np.float64),
-                      np.asarray(loaded.faces)))
-    if not parts or all(len(f) == 0 for _, _, f in parts):
+                      np.asarray(loaded.faces), _colour_material(loaded)))
+    if not parts or all(len(p[2]) == 0 for p in parts):
         raise MeshError("mesh file contains no triangles", source=where)
     return merge_parts(parts, name=path.stem, scale=scale, source=where)
 
 
-def merge_parts(parts: list[tuple[str, np.ndarray, np.ndarray]], *, name: str,
-                scale: float = 1.0, source: str | None = None) -> Mesh:
-    """Concatenate ``(part name, vertices, faces)`` pieces into one labelled :class:`Mesh`.
+def _colour_material(geom: Any) -> dict[str, Any] | None:
+    """The default material of a trimesh geometry from its colour, None if it has none."""
+    from .materials import material_from_colour
 
-    Pieces with the same name share one label.
+    visual = getattr(geom, "visual", None)
+    kind = getattr(visual, "kind", None)
+    colour = None
+    if kind == "texture":
+        colour = getattr(getattr(visual, "material", None), "main_color", None)
+    elif kind in ("face", "vertex") and getattr(visual, "defined", False):
+        colour = np.asarray(visual.face_colors, dtype=np.float64).mean(axis=0)
+    if colour is None:
+        return None
+    return material_from_colour(np.asarray(colour, dtype=np.float64)[:3] / 255.0)
+
+
+def merge_parts(parts: list[tuple], *, name: str, scale: float = 1.0,
+                source: str | None = None) -> Mesh:
+    """Concatenate ``(part name, vertices, faces)`` or ``(part name, vertices, faces,
+    material)`` pieces into one labelled :class:`Mesh`.
+
+    Pieces with the same name share one label (and the first piece's material).
     """
     names: list[str] = []
+    materials: list[Any] = []
     verts, faces, labels = [], [], []
     offset = 0
-    for part, v, f in parts:
+    for part, v, f, *material in parts:
         if part not in names:
             names.append(part)
+            materials.append(material[0] if material else None)
         verts.append(np.asarray(v, dtype=np.float64) * scale)
         faces.append(np.asarray(f, dtype=np.int64) + offset)
         labels.append(np.full(len(f), names.index(part), dtype=np.int32))
         offset += len(v)
     return Mesh.from_arrays(np.concatenate(verts), np.concatenate(faces), np.concatenate(labels),
-                            tuple(names), name=name, source=source)
+                            tuple(names), name=name, source=source,
+                            part_materials=tuple(materials) if any(
+                                m is not None for m in materials) else ())

@@ -168,14 +168,29 @@ def build_registry(pm: PluginManager | None = None) -> Registry:
 
 _lock = threading.Lock()
 _registry: Registry | None = None
+_building = threading.local()
 
 
 def get_registry() -> Registry:
-    """The process-wide registry, built on first use."""
+    """The process-wide registry, built on first use.
+
+    Raises
+    ------
+    RuntimeError
+        If called by a plugin while the registry is being built (it would otherwise wait for
+        itself forever); the plugin manager reports it naming that plugin.
+    """
     global _registry
+    if getattr(_building, "active", False):
+        raise RuntimeError("get_registry() was called while the registry is being built; a "
+                           "registration hook must not look up other components")
     with _lock:
         if _registry is None:
-            _registry = build_registry()
+            _building.active = True
+            try:
+                _registry = build_registry()
+            finally:
+                _building.active = False
         return _registry
 
 

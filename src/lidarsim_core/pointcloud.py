@@ -19,7 +19,17 @@ face_index             i8       hit triangle of the target mesh
 target                 i2       index into ``frame.target_names``
 part                   i2       index into ``frame.part_names`` (scene-wide part labels)
 incidence_angle        f8       angle between the ray and the surface normal (rad)
+intensity              f4       apparent reflectivity of the return (0.2 for a 20 % Lambertian
+                                target face-on; above 1 for glints, retro-reflectors); see
+                                ``docs/realism.md``
+detected               u1       1: reported by the sensor; 0: missed by the detection model,
+                                kept only with ``sensor.detection.keep_undetected``
 =====================  =======  ==============================================================
+
+False alarms (noise model ``false_alarms``) have target -1, face -1, the scene's last part
+(``<scene>/false_alarm``) and NaN ground truth (``x_true``..., ``range_true``,
+``incidence_angle``). Kept undetected returns have ``return_number`` and
+``number_of_returns`` 0.
 """
 
 from __future__ import annotations
@@ -42,6 +52,7 @@ POINT_FIELDS: dict[str, str] = {
     "channel": "i2", "ray_index": "i8", "face_index": "i8",
     "target": "i2", "part": "i2",
     "incidence_angle": "f8",
+    "intensity": "f4", "detected": "u1",
 }
 
 

@@ -6,6 +6,8 @@ A minimal scenario (YAML)::
     sensor:
       datasheet: livox-mid70-rose          # catalogue name, a datasheet file, or an inline mapping
       pose: {position_m: [0, 0, 0]}
+      # beam: {sub_rays: 16}, detection: {}, returns: {mode: dual}: sensor realism, off
+      # unless given (docs/realism.md)
     targets:
       - name: envisat
         mesh: {model: envisat, options: {detail: medium}}   # or {path: envisat.stl, scale: 1.0}
@@ -27,12 +29,15 @@ from typing import Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, field_validator, model_validator
 
+from .beam import BeamConfig
 from .config_io import read_config_file, validate_model
 from .poses import PoseConfig
+from .radiometry import DetectionConfig
+from .returns import ReturnsConfig
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
 class NamedComponent(_Strict):
@@ -80,6 +85,15 @@ class SensorConfig(_Posed):
                     "inline datasheet mapping.")
     pattern_options: dict[str, Any] = Field(
         default_factory=dict, description="Overrides of the datasheet's scan_pattern.options.")
+    beam: BeamConfig | None = Field(
+        None, description="Beam divergence sampled with sub-rays; omitted: one ray per pulse "
+                          "(the seed paper's model).")
+    detection: DetectionConfig | None = Field(
+        None, description="Link-budget detection (reflectivity, incidence, range); omitted: "
+                          "every hit inside the range gate is detected (the seed paper's "
+                          "model).")
+    returns: ReturnsConfig | None = Field(
+        None, description="Return formation and mode; omitted: the datasheet's.")
 
 
 class MeshConfig(_Strict):
@@ -104,6 +118,12 @@ class TargetConfig(_Posed):
 
     name: str = Field(min_length=1, description="Label written into the point record.")
     mesh: MeshConfig
+    materials: dict[str, str | dict[str, Any]] = Field(
+        default_factory=dict,
+        description="Part name → material: a material name (built-in or from the scenario's "
+                    "'materials') or an inline mapping of material fields; key '*' sets "
+                    "every part not named. Unnamed parts keep the mesh's own materials "
+                    "(Envisat's defaults, mesh-file colours) or 'default'.")
 
 
 class ScanConfig(_Strict):
@@ -152,6 +172,10 @@ class ScanConfig(_Strict):
         return t0, t0 + self.duration_s
 
 
+#: Sensor fields of the measurement model that are absent (None) in the seed paper's model.
+_REALISM_SENSOR_FIELDS = ("beam", "detection", "returns")
+
+
 class Scenario(_Strict):
     """A complete simulation set-up."""
 
@@ -166,6 +190,10 @@ class Scenario(_Strict):
         None, description="Noise chain in order; default: the datasheet's angular and range "
                           "errors; [] for a noiseless run.")
     chunk_rays: int = Field(131072, ge=1, description="Rays processed per chunk (memory bound).")
+    materials: dict[str, dict[str, Any]] = Field(
+        default_factory=dict, description="Your own named materials (name → material fields: "
+                                          "diffuse_reflectivity, specular_reflectance, ...), "
+                                          "usable in targets[].materials.")
 
     _source: Path | None = PrivateAttr(None)
 
@@ -204,8 +232,22 @@ class Scenario(_Strict):
         return path if path.is_absolute() else self.base_dir / path
 
     def config_hash(self) -> str:
-        """SHA-256 of the canonical JSON of the validated scenario (first 16 hex digits)."""
-        canon = json.dumps(self.model_dump(mode="json"), sort_keys=True, separators=(",", ":"))
+        """SHA-256 of the canonical JSON of the validated scenario (first 16 hex digits).
+
+        The sensor-realism fields (``sensor.beam``/``detection``/``returns``, ``materials``)
+        enter the JSON only when set, so scenarios written before they existed keep their
+        hash (and their datasets can be resumed).
+        """
+        data = self.model_dump(mode="json")
+        for key in _REALISM_SENSOR_FIELDS:
+            if data["sensor"].get(key) is None:
+                data["sensor"].pop(key, None)
+        for target in data["targets"]:
+            if not target.get("materials"):
+                target.pop("materials", None)
+        if not data.get("materials"):
+            data.pop("materials", None)
+        canon = json.dumps(data, sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(canon.encode("utf-8")).hexdigest()[:16]
 
     def with_updates(self, **changes: Any) -> "Scenario":

@@ -83,6 +83,8 @@ def atomic_output(path: str | Path, *, overwrite: bool = True) -> Iterator[IO[by
         raise OutputError("output file exists (use --overwrite to replace it)", source=path)
     try:
         fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=parent)
+    except PermissionError:
+        raise OutputError(f"output directory is not writable: {parent}", source=path) from None
     except OSError as exc:
         raise OutputError(f"cannot write here: {exc.strerror}", source=path) from None
     try:

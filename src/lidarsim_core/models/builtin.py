@@ -21,6 +21,26 @@ class EnvisatOptions(ComponentOptions):
                               "(~100k), or an integer tessellation factor.")
 
 
+#: Default material of every Envisat part (names of :data:`lidarsim_core.materials.MATERIAL_LIBRARY`
+#: entries, whose sources say how their values were estimated). The assignment follows
+#: Envisat's appearance in ESA imagery: gold/amber MLI blankets over the bus and instruments,
+#: silicon cells on the array front, a dark film on the ASAR face, white dishes; the radiators'
+#: finish (OSR tiles) and the boom's (composite) are our assumptions.
+ENVISAT_MATERIALS: dict[str, str] = {
+    "bus": "mli_aluminised_kapton",
+    "solar_array": "solar_cell_glass",
+    "solar_array_boom": "cfrp",
+    "asar_antenna": "dark_antenna_film",
+    "ka_antenna": "white_paint",
+    "ka_mast": "mli_aluminised_kapton",
+    "adapter_ring": "anodised_aluminium",
+    "meris": "mli_aluminised_kapton",
+    "aatsr": "mli_aluminised_kapton",
+    "ra2_antenna": "white_paint",
+    "radiators": "osr_mirror",
+}
+
+
 class EnvisatModel(TargetModel):
     """Parametric ESA Envisat: bus, solar array on its boom, ASAR antenna and appendages."""
 
@@ -32,7 +52,8 @@ class EnvisatModel(TargetModel):
         from .envisat import build_envisat
 
         vertices, faces, face_part, names = build_envisat(self.options.detail)
-        return Mesh.from_arrays(vertices, faces, face_part, names, name="envisat")
+        return Mesh.from_arrays(vertices, faces, face_part, names, name="envisat",
+                                part_materials=tuple(ENVISAT_MATERIALS[n] for n in names))
 
 
 class BoxOptions(ComponentOptions):

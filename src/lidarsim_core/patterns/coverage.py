@@ -194,7 +194,8 @@ def fov_coverage(pattern: ScanPattern, duration_s: float, cell_deg: float = 0.5,
         coverage=float(hit[grid.in_fov].sum() / n_fov) if n_fov else 0.0, density=density)
 
 
-def pattern_for(sensor: Any, overrides: dict[str, Any] | None = None) -> ScanPattern:
+def pattern_for(sensor: Any, overrides: dict[str, Any] | None = None, *,
+                source: str | None = None) -> ScanPattern:
     """The scan pattern of a datasheet (its ``scan_pattern`` plus ``overrides``), from the registry.
 
     Parameters
@@ -203,9 +204,11 @@ def pattern_for(sensor: Any, overrides: dict[str, Any] | None = None) -> ScanPat
         A :class:`~lidarsim_core.datasheet.SensorDatasheet`.
     overrides
         Pattern options replacing the datasheet's.
+    source
+        Where the datasheet came from (its file), named by errors.
     """
     from ..plugins import get_registry
 
-    cls = get_registry().get("scan_pattern", sensor.scan_pattern.name,
+    cls = get_registry().get("scan_pattern", sensor.scan_pattern.name, source=source,
                              field="scan_pattern.name")
-    return cls.for_sensor(sensor, overrides)
+    return cls.for_sensor(sensor, overrides, source=source)

@@ -180,9 +180,18 @@ def _check_range(path: Path, values: np.ndarray, lo: float, hi: float, name: str
 
 def _from_npy(path: Path) -> PatternTable:
     try:
+        with path.open("rb") as stream:
+            magic = stream.read(len(np.lib.format.MAGIC_PREFIX))
+        if magic != np.lib.format.MAGIC_PREFIX:
+            raise PatternFileError("not a .npy file (no NumPy array header)", source=path)
+        # never unpickle: a pattern table is numbers, and a pickle could run code
         arr = np.load(path, allow_pickle=False)
-    except (OSError, ValueError) as exc:
-        raise PatternFileError(f"not a readable .npy array: {exc}", source=path) from None
+    except OSError as exc:
+        raise PatternFileError(f"cannot read the file: {exc.strerror}", source=path) from None
+    except ValueError as exc:
+        reason = "it holds Python objects (pickles are never loaded)" \
+            if "allow_pickle" in str(exc) else " ".join(str(exc).split())
+        raise PatternFileError(f"not a readable .npy array: {reason}", source=path) from None
     if arr.dtype.names:
         index = _generic_index(path, list(arr.dtype.names))
         names = list(arr.dtype.names)
