@@ -96,3 +96,20 @@ def test_sigterm_handler_is_restored_after_the_command():
         cli.main(["--version"])
     assert info.value.code == 0
     assert signal.getsignal(signal.SIGTERM) is before
+
+
+def test_sigterm_stops_a_dataset_run_cleanly(tmp_path):
+    """``lidarsim dataset`` gets the same treatment: one line, exit 143, no '.part' file."""
+    scan = {"duration_s": 0.05, "frame_period_s": 0.1, "frames": 40}
+    (tmp_path / "scene.yaml").write_text(yaml.safe_dump({**SCENARIO, "scan": scan}))
+    env = {**os.environ, "LIDARSIM_DISABLE_PLUGIN_AUTOLOAD": "1", "COLUMNS": "200"}
+    out = tmp_path / "ds"
+    proc = subprocess.Popen([sys.executable, "-m", "lidarsim_core", "dataset", "scene.yaml",
+                             "--out", "ds", "--quiet"], cwd=tmp_path, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    _wait_for(proc, lambda: len(list(out.glob("frames/*.json"))) >= 2)
+    _, stderr = _interrupt(proc, signal.SIGTERM)
+    code, line = EXPECTED[signal.SIGTERM]
+    assert proc.returncode == code, stderr
+    assert [x for x in stderr.splitlines() if x.strip()] == [line]
+    assert not list(out.rglob("*.part"))

@@ -90,21 +90,39 @@ def split_range(start: int, stop: int, size: int) -> list[tuple[int, int]]:
     return [(lo, min(lo + size, stop)) for lo in range(start, stop, size)]
 
 
+def _matvec(matrices: np.ndarray, vectors: np.ndarray) -> np.ndarray:
+    """Rows ``M_n v_n`` for (1 or N, 3, 3) ``matrices`` and (1 or N, 3) ``vectors``.
+
+    Computed as ``(M_i0 v_0 + M_i1 v_1) + M_i2 v_2`` with element-wise operations, always in
+    this order, so a row gets the same bits whether one matrix serves every row or each row
+    has its own: a frame does not change in the last bit with the size of its pieces (a piece
+    of one ray of a moving target holds one pose, like a piece of a static one).
+    """
+    n = max(len(matrices), len(vectors))
+    shared = matrices[0] if len(matrices) == 1 else None
+    x, y, z = vectors[:, 0], vectors[:, 1], vectors[:, 2]
+    out = np.empty((n, 3))
+    for i in range(3):
+        a, b, c = (shared[i] if shared is not None else matrices[:, i, :].T)
+        column = x * a
+        column += y * b
+        column += z * c
+        out[:, i] = column
+    return out
+
+
 def rotate(poses: Poses, vectors: np.ndarray, *, inverse: bool = False) -> np.ndarray:
     """Rotate (N, 3) vectors by ``poses`` (body → scene, or back with ``inverse``).
 
-    A single pose is applied to every row as one matrix product, as SciPy does for a single
-    rotation (ten times faster than N copies of the rotation; equal to ~1 ulp).
+    ``poses`` holds one pose (applied to every row) or N. Both cases use the same arithmetic,
+    so a vector's result depends only on its own pose, not on how many rows share the call.
     """
-    if len(poses) != 1:
-        return poses.rotate_inverse(vectors) if inverse else poses.rotate(vectors)
-    matrix = poses.rotation.as_matrix().reshape(3, 3)
-    # v @ M.T rotates by M; v @ M rotates by M⁻¹ = Mᵀ (contiguous right operands for BLAS)
-    return vectors @ (matrix if inverse else np.ascontiguousarray(matrix.T))
+    matrices = poses.rotation.as_matrix().reshape(-1, 3, 3)
+    if inverse:
+        matrices = matrices.transpose(0, 2, 1)
+    return _matvec(matrices, np.asarray(vectors, dtype=np.float64).reshape(-1, 3))
 
 
 def to_body(poses: Poses, points: np.ndarray) -> np.ndarray:
     """Map (N, 3) (or (1, 3)) scene points into the body frame of ``poses``."""
-    if len(poses) != 1:
-        return poses.apply_inverse(points)
     return rotate(poses, points - poses.position, inverse=True)

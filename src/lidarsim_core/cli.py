@@ -1,7 +1,9 @@
 """The ``lidarsim`` command line.
 
-User errors (bad files, fields, names, paths) print one line and exit with code 2; other
-failures print one line and exit with code 1. ``--debug`` shows the traceback instead.
+User errors (bad files, fields, names, paths) and failing plugins print one line and exit with
+code 2; other failures print one line and exit with code 1; Ctrl-C (SIGINT) exits with 130 and
+SIGTERM with 143, after removing any partly written file. ``--debug`` shows the traceback
+instead of the one line.
 """
 
 from __future__ import annotations
@@ -198,7 +200,6 @@ def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwri
     import os
 
     from .errors import ConfigError, OutputError
-    from .guard import check_sensor_outside, guard_components, guard_exporter
     from .io.base import exporter_for, write_points_file
     from .io.paths import frame_paths, has_frame_field
     from .io.points import PointSpool
@@ -234,12 +235,10 @@ def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwri
             raise OutputError(f"output directory does not exist: {parent}", source=target)
         if not os.access(parent, os.W_OK | os.X_OK):
             raise OutputError(f"output directory is not writable: {parent}", source=target)
-    sim = guard_components(Simulation(scenario))
-    guard_exporter(exporter)
+    sim = Simulation(scenario)  # guards third-party components itself
     console = _console()
     for f, target in zip(frames, targets):
         t0 = time.perf_counter()
-        check_sensor_outside(sim, f)
         info = sim.frame_info(f)
         # stream the frame through a spool (memory, then a temporary file): any size fits
         with PointSpool(info, memory_limit=SPOOL_MEMORY_BYTES) as spool:
@@ -249,9 +248,10 @@ def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwri
         console.print(f"frame {f}: {points:,} points from {info.rays_emitted:,} rays "
                       f"in {time.perf_counter() - t0:.2f} s → {target}")
         if points == 0:
-            console.print(f"note: frame {f} is empty: no ray hit a target within "
+            console.print(f"note: frame {f} is empty: no point was detected within "
                           f"{sim.sensor.range_min_m:g}–{sim.sensor.range_max_m:g} m (targets "
-                          "out of range, outside the field of view or behind the sensor)")
+                          "out of range, outside the field of view, behind the sensor or too "
+                          "faint)")
 
 
 # ---- listings ----------------------------------------------------------------------------

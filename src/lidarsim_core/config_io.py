@@ -69,11 +69,48 @@ def parse_config_text(text: str, suffix: str, *, source: str | Path = "<string>"
         raise ConfigError(f"malformed TOML: {exc}", source=source) from None
     except json.JSONDecodeError as exc:
         raise ConfigError(f"malformed JSON: {exc}", source=source) from None
+    except RecursionError:
+        raise ConfigError("values are nested too deeply", source=source) from None
     if data is None:
         raise ConfigError("file is empty", source=source)
     if not isinstance(data, dict):
         raise ConfigError(f"top level must be a mapping, not {type(data).__name__}", source=source)
+    _check_expanded_size(data, source)
     return data
+
+
+#: Most values (scalars, lists and mappings, counted as often as YAML aliases repeat them) a
+#: configuration file may hold: a few lines of aliases could otherwise stand for billions.
+MAX_CONFIG_VALUES = 1_000_000
+
+
+def _check_expanded_size(data: Any, source: str | Path) -> None:
+    sizes: dict[int, int] = {}
+    open_: set[int] = set()
+
+    def count(node: Any) -> int:
+        if not isinstance(node, (dict, list)):
+            return 1
+        key = id(node)
+        if key in sizes:  # shared through an alias: counted again, computed once
+            return sizes[key]
+        if key in open_:
+            raise ConfigError("a YAML alias contains itself (the value would be infinite)",
+                              source=source)
+        open_.add(key)
+        total = 1 + sum(count(item) for item in (node.values() if isinstance(node, dict)
+                                                 else node))
+        open_.discard(key)
+        if total > MAX_CONFIG_VALUES:
+            raise ConfigError(f"the file expands to more than {MAX_CONFIG_VALUES:,} values "
+                              "(YAML aliases repeating large collections)", source=source)
+        sizes[key] = total
+        return total
+
+    try:
+        count(data)
+    except RecursionError:
+        raise ConfigError("values are nested too deeply", source=source) from None
 
 
 _LOADER: Any = None

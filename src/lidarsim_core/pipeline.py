@@ -39,6 +39,7 @@ from .builtin_sensors import get_sensor
 from .chunks import ordered_map, rotate, split_range, to_body, worker_threads
 from .config_io import validate_model
 from .datasheet import SensorDatasheet
+from .guard import check_sensor_outside, guard_components
 from .errors import ConfigError, LidarsimError, PluginError
 from .materials import Material, MaterialTable, material_library, part_materials
 from .mesh import Mesh, load_mesh_file
@@ -144,6 +145,8 @@ class Simulation:
             offset += len(mesh.part_names)
         self.part_names = [f"{t.name}/{p}" for t in self.targets for p in t.mesh.part_names]
         self._setup_measurement(scenario)
+        # third-party components that fail mid-run are reported with their name
+        guard_components(self, registry)
 
     def _setup_measurement(self, scenario: Scenario) -> None:
         """Materials, link budget, range gate, beam and return mode (docs/realism.md)."""
@@ -248,6 +251,7 @@ class Simulation:
         if the backend is not ``thread_safe``); every ray's result depends only on its index,
         so neither setting changes the output.
         """
+        check_sensor_outside(self, frame)
         chunk = chunk_rays or self.scenario.chunk_rays
         k0, k1 = self.frame_rays(frame)
         contexts = self._noise_contexts(frame)

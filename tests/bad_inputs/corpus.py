@@ -162,6 +162,13 @@ def _generate(kind: str, **params: Any) -> bytes:
         text = (FILES / "base_scenario.yaml").read_text(encoding="utf-8")
         return text.replace("scan: {duration_s: 0.01}",
                             "scan:\n  duration_s: 0.01\n  duration_s: 5.0").encode()
+    if kind == "alias_bomb_yaml":  # ten levels of ten aliases: 10**10 values in 11 lines
+        lines = ["l0: &l0 [1, 1, 1, 1, 1, 1, 1, 1, 1, 1]"]
+        lines += [f"l{i}: &l{i} [{', '.join([f'*l{i - 1}'] * 10)}]" for i in range(1, 10)]
+        text = (FILES / "base_scenario.yaml").read_text(encoding="utf-8")
+        return text.replace("pose: {position_m: [0, 0, 0]}",  # options hold any values
+                            "pose: {position_m: [0, 0, 0]}\n  pattern_options:\n"
+                            + "".join(f"    {line}\n" for line in lines)).encode()
     tri = np.array([[[0, -1, -1], [0, 0, 1], [0, 1, -1]],
                     [[0, -1, -1], [0, 1, -1], [0, -1, 1]]], dtype=np.float64)
     if kind == "truncated_stl":

@@ -10,7 +10,7 @@ JSON (:mod:`lidarsim_core.io.sidecar`) that holds the frame metadata for every f
 from __future__ import annotations
 
 import os
-import tempfile
+import secrets
 from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any, ClassVar, Iterator
@@ -21,15 +21,6 @@ from ..errors import OutputError
 if TYPE_CHECKING:
     from ..pointcloud import PointCloud
     from .points import PointSource
-
-
-def _read_umask() -> int:
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
-_UMASK = _read_umask()
 
 
 class Exporter(Component):
@@ -70,8 +61,11 @@ class Exporter(Component):
 def atomic_output(path: str | Path, *, overwrite: bool = True) -> Iterator[IO[bytes]]:
     """Open a temporary file beside ``path``; rename it onto ``path`` only on success.
 
-    Nothing is left on disk if the body raises (or the process is interrupted before the
-    rename, apart from a hidden ``.part`` file that a signal can strand; it is never the target).
+    The temporary file is hidden (``.NAME.RANDOM.part``) and never the target. It is removed
+    whatever stops the body: an exception, Ctrl-C, or SIGTERM under the CLI (its name is
+    chosen before the file is created, so even an interrupt arriving while it is being
+    created cannot strand it). Only SIGKILL or a crash can leave one behind; ``lidarsim
+    dataset`` removes such leftovers when it resumes.
     """
     path = Path(path)
     parent = path.parent if str(path.parent) else Path(".")
@@ -81,25 +75,31 @@ def atomic_output(path: str | Path, *, overwrite: bool = True) -> Iterator[IO[by
         raise OutputError(f"output directory does not exist: {parent}", source=path)
     if path.exists() and not overwrite:
         raise OutputError("output file exists (use --overwrite to replace it)", source=path)
+    tmp: Path | None = parent / f".{path.name}.{secrets.token_hex(6)}.part"
     try:
-        fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".part", dir=parent)
-    except PermissionError:
-        raise OutputError(f"output directory is not writable: {parent}", source=path) from None
-    except OSError as exc:
-        raise OutputError(f"cannot write here: {exc.strerror}", source=path) from None
-    try:
-        if hasattr(os, "fchmod"):  # mkstemp makes 0600; give the file the usual permissions
-            os.fchmod(fd, 0o666 & ~_UMASK)
+        try:
+            # O_EXCL: a name that exists is never ours (and is then left alone); the mode is
+            # reduced by the umask as for any new file
+            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0),
+                         0o666)
+        except PermissionError:
+            tmp = None
+            raise OutputError(f"output directory is not writable: {parent}",
+                              source=path) from None
+        except OSError as exc:
+            tmp = None
+            raise OutputError(f"cannot write here: {exc.strerror}", source=path) from None
         with os.fdopen(fd, "wb") as stream:
             yield stream
             stream.flush()
             os.fsync(stream.fileno())
-        os.replace(tmp_name, path)
+        os.replace(tmp, path)
     except BaseException:
-        try:
-            os.unlink(tmp_name)
-        except FileNotFoundError:
-            pass
+        if tmp is not None:
+            try:
+                os.unlink(tmp)
+            except FileNotFoundError:
+                pass
         raise
 
 
@@ -144,9 +144,11 @@ def write_points_file(points: "PointSource", path: str | Path, *, format: str | 
     dict
         The sidecar record (file name, exporter, point count, columns, size, SHA-256, frame).
     """
+    from ..guard import guard_exporter
     from .sidecar import sidecar_record, write_sidecar
 
-    exporter = exporter or exporter_for(path, format)
+    # a third-party exporter that fails is reported by name (and leaves no file)
+    exporter = guard_exporter(exporter or exporter_for(path, format))
     with atomic_output(path, overwrite=overwrite) as stream:
         exporter.write_points(points, stream)
     record = sidecar_record(path, points, exporter)

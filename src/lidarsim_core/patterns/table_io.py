@@ -53,19 +53,42 @@ class PatternTable:
 
 
 def resolve_table_path(text: str) -> Path:
-    """A file path, or ``pkg:MODULE/relative/path`` for a file shipped inside a Python package."""
-    if text.startswith("pkg:"):
-        from importlib.resources import files
+    """A file path, or ``pkg:MODULE/relative/path`` for a file shipped inside a Python package.
 
+    ``MODULE`` is located without being imported (a configuration file never runs code): it
+    must be a top-level package, or a module already imported (e.g. a loaded plugin).
+    """
+    if text.startswith("pkg:"):
         module, _, rel = text[4:].partition("/")
         if not module or not rel:
             raise PatternFileError("a 'pkg:' path needs the form pkg:MODULE/relative/path",
                                    source=text)
-        try:
-            return Path(str(files(module).joinpath(rel)))
-        except ModuleNotFoundError:
-            raise PatternFileError(f"package '{module}' is not installed", source=text) from None
+        return _package_dir(module, rel, text) / rel
     return Path(text).expanduser()
+
+
+def _package_dir(module: str, rel: str, text: str) -> Path:
+    import importlib.util
+    import sys
+
+    loaded = sys.modules.get(module)
+    spec = getattr(loaded, "__spec__", None)
+    if spec is None:
+        if "." in module:  # finding a submodule would import (run) its parent packages
+            raise PatternFileError(f"'{module}' is not imported: a 'pkg:' path names a "
+                                   "top-level package or a loaded plugin module", source=text)
+        try:
+            spec = importlib.util.find_spec(module)  # locates a top-level module, runs nothing
+        except (ImportError, ValueError):
+            spec = None
+    if spec is None:
+        raise PatternFileError(f"package '{module}' is not installed", source=text)
+    places = [Path(p) for p in (spec.submodule_search_locations or [])]
+    if not places and spec.origin:
+        places = [Path(spec.origin).parent]
+    if not places:
+        raise PatternFileError(f"package '{module}' has no files on disk", source=text)
+    return next((p for p in places if (p / rel).exists()), places[0])
 
 
 def read_pattern_table(path: str | Path, fmt: TableFormat = "auto") -> PatternTable:
