@@ -10,12 +10,13 @@ from helpers import datasheet, scenario
 from lidarsim_core.noise.base import perpendicular_basis
 from lidarsim_core.patterns.geometry import directions_from_az_el
 
-# A sensor inside a large closed sphere: every ray hits, at a known range.
-INSIDE_SPHERE = {"model": "sphere", "options": {"radius_m": 20.0, "subdivisions": 3}}
+# A plate 20 m ahead, far wider than the 40° FOV: every ray hits, at a known range.
+WALL = {"model": "plate", "options": {"size_m": [200.0, 200.0]}}
+WALL_POSE = {"position_m": [20.0, 0.0, 0.0]}
 
 
 def _cloud(noise, *, seed=11, duration_s=1.0, **sheet):
-    return ls.simulate(scenario(INSIDE_SPHERE, sheet=datasheet(**sheet), noise=noise, seed=seed,
+    return ls.simulate(scenario(WALL, WALL_POSE, sheet=datasheet(**sheet), noise=noise, seed=seed,
                                 duration_s=duration_s))
 
 
@@ -71,7 +72,7 @@ def test_same_seed_same_output_different_seed_different_noise():
 
 
 def test_noise_does_not_depend_on_chunk_size():
-    sc = scenario(INSIDE_SPHERE, sheet=datasheet(), noise=None, seed=3, duration_s=0.3)
+    sc = scenario(WALL, WALL_POSE, sheet=datasheet(), noise=None, seed=3, duration_s=0.3)
     sim = ls.Simulation(sc)
     whole = sim.run_frame(0, chunk_rays=10 ** 6)
     pieces = sim.run_frame(0, chunk_rays=777)
