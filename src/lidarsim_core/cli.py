@@ -140,11 +140,9 @@ def _demo(out: Path, duration: float, backend: str, detail: str, seed: int) -> N
 
 
 def _print_demo_summary(out: Path, results: dict[str, Any], wall: float) -> None:
-    import numpy as np
     from rich.table import Table
 
-    noisy, t_noisy, scenario = results["with_errors"]
-    clean, t_clean, _ = results["without_errors"]
+    noisy = results["with_errors"][0]
     console = _console()
     frame = noisy.frame
     console.print(f"[bold]lidarsim demo[/]: {frame.sensor} scanning Envisat for "
@@ -175,7 +173,6 @@ def _print_demo_summary(out: Path, results: dict[str, Any], wall: float) -> None
     files = sorted(p.name for p in out.iterdir() if not p.name.startswith("."))
     console.print(f"wrote {len(files)} files to {out}/: {', '.join(files)}")
     console.print(f"total wall time {wall:.2f} s")
-    del np
 
 
 # ---- simulate ----------------------------------------------------------------------------
