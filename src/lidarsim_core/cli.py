@@ -129,10 +129,9 @@ def _demo(out: Path, duration: float, backend: str, detail: str, seed: int) -> N
         results[label] = (cloud, elapsed, scenario)
     scenario = results["with_errors"][2]
     scenario_text = yaml.safe_dump(scenario.model_dump(mode="json"), sort_keys=False)
-    from .io.base import atomic_output
+    from .io.base import write_text_atomic
 
-    with atomic_output(out / "scenario.yaml") as stream:
-        stream.write(scenario_text.encode("utf-8"))
+    write_text_atomic(out / "scenario.yaml", scenario_text)
     _print_demo_summary(out, results, time.perf_counter() - started)
     from .cli_report import demo_report
 

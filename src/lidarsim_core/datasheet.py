@@ -113,11 +113,6 @@ class SensorDatasheet(_Strict):
 
     # ---- SI views, converted once here -------------------------------------------------
     @property
-    def range_precision(self) -> float:
-        """Range precision 1 sigma in metres."""
-        return self.range_precision_m
-
-    @property
     def angular_precision_rad(self) -> float:
         """Angular precision 1 sigma in radians."""
         return math.radians(self.angular_precision_deg)

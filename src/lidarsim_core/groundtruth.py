@@ -164,7 +164,7 @@ def write_ground_truth(path: str | Path, infos: Sequence["FrameInfo"], *,
     OutputError
         Unknown suffix, existing file without ``overwrite``, or an unwritable place.
     """
-    from .io.base import atomic_output
+    from .io.base import write_text_atomic
 
     path = Path(path)
     suffix = path.suffix.lower()
@@ -173,8 +173,7 @@ def write_ground_truth(path: str | Path, infos: Sequence["FrameInfo"], *,
                           source=path)
     data = ground_truth(infos, clouds)
     text = _csv_text(data) if suffix == ".csv" else _json_text(data)
-    with atomic_output(path, overwrite=overwrite) as stream:
-        stream.write(text.encode("utf-8"))
+    write_text_atomic(path, text, overwrite=overwrite)
     return path
 
 

@@ -26,7 +26,7 @@ import numpy as np
 import yaml
 
 from ..errors import OutputError
-from ..io.base import atomic_output
+from ..io.base import atomic_output, write_text_atomic
 from ..io.points import DEFAULT_SPOOL_MEMORY
 from ..io.sidecar import frame_is_complete
 from ..plugins import get_registry
@@ -169,8 +169,7 @@ def _write_text(path: Path, text: str) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     if path.is_file() and path.read_text(encoding="utf-8") == text:
         return
-    with atomic_output(path) as stream:
-        stream.write(text.encode("utf-8"))
+    write_text_atomic(path, text)
 
 
 def _prepare_sequence(seq: _Sequence, suffix: str) -> None:

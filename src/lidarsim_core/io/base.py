@@ -103,6 +103,13 @@ def atomic_output(path: str | Path, *, overwrite: bool = True) -> Iterator[IO[by
         raise
 
 
+def write_text_atomic(path: str | Path, text: str, *, overwrite: bool = True) -> Path:
+    """Write UTF-8 ``text`` to ``path`` through :func:`atomic_output`; returns the path."""
+    with atomic_output(path, overwrite=overwrite) as stream:
+        stream.write(text.encode("utf-8"))
+    return Path(path)
+
+
 def exporter_for(path: str | Path, format: str | None = None) -> Exporter:
     """The exporter selected by ``format`` (a registered name) or by the suffix of ``path``."""
     from ..plugins import get_registry

@@ -60,13 +60,11 @@ def sidecar_record(path: str | Path, points: "PointSource", exporter: "Exporter"
 
 def write_sidecar(path: str | Path, record: dict[str, Any]) -> Path:
     """Write ``record`` atomically to the sidecar of ``path``; returns the sidecar's path."""
-    from .base import atomic_output
+    from .base import write_text_atomic
 
     target = sidecar_path(path)
     text = json.dumps(record, indent=1, sort_keys=True) + "\n"
-    with atomic_output(target) as stream:
-        stream.write(text.encode("utf-8"))
-    return target
+    return write_text_atomic(target, text)
 
 
 def read_sidecar(path: str | Path) -> dict[str, Any]:

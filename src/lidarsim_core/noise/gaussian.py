@@ -39,7 +39,7 @@ class AngularError(NoiseModel):
     def sigma_rad(self, ctx: NoiseContext) -> float:
         """The 1σ angle in radians for this sensor."""
         sigma = self.options.sigma_deg
-        return math.radians(sigma if sigma is not None else ctx.sensor.angular_precision_deg)
+        return math.radians(sigma) if sigma is not None else ctx.sensor.angular_precision_rad
 
     def perturb_rays(self, directions: np.ndarray, ray_index: np.ndarray,
                      ctx: NoiseContext) -> np.ndarray:

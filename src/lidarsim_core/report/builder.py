@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import LidarsimError, OutputError
-from ..io.base import atomic_output
+from ..io.base import write_text_atomic
 from .run import Run, load_run
 
 #: File names of the figures, by key.
@@ -225,10 +225,9 @@ def build_report(run: Run, out: Path, *, colour_by: str = "part",
     order = list(FIGURE_FILES)
     report.figures.sort(key=lambda f: order.index(f.key))
     report.json = out / "report.json"
-    with atomic_output(report.json) as stream:
-        stream.write(json.dumps({"summary": report.summary, "notes": report.notes,
-                                 "figures": {f.key: f.path.name for f in report.figures}},
-                                indent=2, default=_jsonable).encode("utf-8"))
+    write_text_atomic(report.json, json.dumps(
+        {"summary": report.summary, "notes": report.notes,
+         "figures": {f.key: f.path.name for f in report.figures}}, indent=2, default=_jsonable))
     from .html import write_html
 
     report.html = write_html(report, out / "report.html")

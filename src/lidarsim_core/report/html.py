@@ -7,7 +7,7 @@ import html
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ..io.base import atomic_output
+from ..io.base import write_text_atomic
 
 if TYPE_CHECKING:
     from .builder import Report
@@ -94,6 +94,4 @@ The figures follow the seed paper's (Figs. 5, 6, 7, 9, 11 and 12).</p>
 
 def write_html(report: "Report", path: str | Path) -> Path:
     """Write the self-contained report page to ``path`` (atomic)."""
-    with atomic_output(path) as stream:
-        stream.write(render_html(report).encode("utf-8"))
-    return Path(path)
+    return write_text_atomic(path, render_html(report))
