@@ -145,7 +145,7 @@ def test_unknown_name_lists_what_is_installed():
 def test_import_is_light():
     code = ("import sys, lidarsim_core; "
             "heavy = [m for m in ('pyvista', 'vtk', 'embreex', 'laspy', 'dask', 'trimesh', "
-            "'matplotlib') if m in sys.modules]; print(','.join(heavy))")
+            "'matplotlib', 'numba', 'llvmlite') if m in sys.modules]; print(','.join(heavy))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout.strip()
     assert out == ""
@@ -154,6 +154,7 @@ def test_import_is_light():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout.strip()
     assert "embreex" not in out and "pyvista" not in out and "vtk" not in out
+    assert "numba" not in out
 
 
 def test_every_hook_is_documented():

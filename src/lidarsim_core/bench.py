@@ -15,7 +15,12 @@ timed through:
   ``simulate_by_backend`` for every backend, ``simulate_noiseless`` without the noise
   models), and its ratio to bare Embree on all threads (``simulate_over_bare``);
 * ``cores_used``: the average number of cores each of these kept busy (process CPU time over
-  wall time).
+  wall time); ``backend_speedup_all_threads``: each backend's rate on all threads over its
+  rate on one;
+* ``stages_1thread``: nanoseconds per ray of each pipeline stage on one thread, and the
+  fraction of pulses left after culling (:func:`pipeline_stages`).
+
+``machine.kernels`` says whether the compiled kernels ran (:mod:`lidarsim_core.kernels`).
 
 The cost of beam divergence (``divergence``): the demo scan with the link-budget detection
 model, once with K sub-rays per pulse (``sensor.beam``) and once with one ray per pulse over a
@@ -42,6 +47,7 @@ from typing import Any, Callable
 
 import numpy as np
 
+from . import kernels
 from .chunks import shared_pool, worker_threads
 from .mesh import Mesh
 
@@ -103,14 +109,58 @@ def bare_embree_probe(mesh: Mesh, origins: np.ndarray, directions: np.ndarray,
     n = len(o32)
     if threads <= 1:
         return lambda: scene.run(o32, d32)
-    step = max(1024, -(-n // (4 * threads)))
+    # two parts per thread: the best split of a 100k-ray scan on this kind of machine
+    # (1, 2, 4 parts per thread were measured within 10 % of each other)
+    step = max(1024, -(-n // (2 * threads)))
     bounds = [(lo, min(lo + step, n)) for lo in range(0, n, step)]
-    pool = shared_pool(threads)  # the Embree backend's persistent threads
+    pool = shared_pool(threads)  # persistent threads, as the Embree backend's
 
     def cast() -> None:
         list(pool.map(lambda b: scene.run(o32[b[0]:b[1]], d32[b[0]:b[1]]), bounds))
 
     return cast
+
+
+def pipeline_stages(sim: Any, frame: int = 0, rounds: int = 5) -> dict[str, Any]:
+    """Where the pipeline's time goes, on one thread: nanoseconds per emitted ray of each
+    stage of a frame (best of ``rounds``), and the fraction of pulses left after culling.
+
+    ``pattern``: the scan pattern's rays; ``cull``: deciding which pulses may reach a target
+    (:mod:`lidarsim_core.cull`); ``cast``: ``backend.cast`` of the remaining pulses;
+    ``rest``: everything else of :meth:`~lidarsim_core.pipeline.Simulation._process` on
+    them (angular error, frame changes, returns, range error, the point record).
+    """
+    k0, k1 = sim.frame_rays(frame)
+    n = k1 - k0
+    t_frame = sim.scenario.scan.frame_interval(frame)[0]
+    contexts = sim._noise_contexts(frame)
+    index = np.arange(k0, k1, dtype=np.int64)
+    batch = sim.pattern.rays_for_indices(index)
+    kept = batch if sim.culler is None else batch.take(sim.culler.keep(sim, batch, t_frame))
+    _, bodies = sim._body_rays(kept, contexts, t_frame)
+    target = sim.targets[0].mesh
+
+    def pattern() -> Any:
+        return sim.pattern.rays_for_indices(index)
+
+    def cull() -> Any:
+        return None if sim.culler is None else sim.culler.keep(sim, batch, t_frame)
+
+    def cast() -> Any:
+        return sim.backend.cast(target, *bodies[0])
+
+    def process() -> Any:
+        return sim._process(kept, contexts, t_frame, frame)
+
+    def run() -> dict[str, float]:
+        return interleaved_best({"pattern": pattern, "cull": cull, "cast": cast,
+                                 "process": process}, rounds)[0]
+
+    best = _with_threads(1, run)
+    ns = {key: 1e9 * seconds / n for key, seconds in best.items()}
+    return {"ns_per_ray": {"pattern": ns["pattern"], "cull": ns["cull"], "cast": ns["cast"],
+                           "rest": max(0.0, ns["process"] - ns["cast"])},
+            "pulses_after_cull": len(kept) / n if n else None}
 
 
 def _with_threads(threads: int | None, func: Callable[[], Any]) -> Any:
@@ -218,6 +268,10 @@ def bench_scene(detail: str, *, duration_s: float = 1.0, rounds: int = 12) -> di
     })
     bare = result["bare_embree"]
     result["simulate_over_bare"] = result["simulate"] / bare if bare else None
+    result["backend_speedup_all_threads"] = {
+        name: rate / result["backends_1thread"][name]
+        for name, rate in result["backends"].items() if result["backends_1thread"].get(name)}
+    result["stages_1thread"] = pipeline_stages(sim)
     return result
 
 
@@ -278,7 +332,8 @@ def run_benchmark(*, quick: bool = False, scenes: dict[str, str] | None = None,
         embree_version = None
     machine = {"cpus": os.cpu_count(), "threads": worker_threads(),
                "python": platform.python_version(), "numpy": np.__version__,
-               "embreex": embree_version, "lidarsim": __version__,
+               "embreex": embree_version, "kernels": kernels.describe(),
+               "lidarsim": __version__,
                "processor": platform.processor() or platform.machine()}
     duration, rounds = (0.2, 3) if quick else (1.0, 12)
     duration = duration_s or duration

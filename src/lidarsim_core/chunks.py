@@ -30,8 +30,9 @@ T = TypeVar("T")
 R = TypeVar("R")
 
 
-_pools: dict[int, ThreadPoolExecutor] = {}
+_pools: dict[tuple[str, int], ThreadPoolExecutor] = {}
 _pools_lock = threading.Lock()
+_worker = threading.local()
 
 
 @functools.lru_cache(maxsize=1)
@@ -47,15 +48,44 @@ def worker_threads() -> int:
     return _cpu_count()
 
 
-def shared_pool(threads: int) -> ThreadPoolExecutor:
-    """A process-wide pool of ``threads`` threads, created on first use and kept (starting
-    threads for every call would cost as much as casting a few thousand rays)."""
+def shared_pool(threads: int, purpose: str = "cast") -> ThreadPoolExecutor:
+    """A process-wide pool of ``threads`` threads for ``purpose``, created on first use and
+    kept (starting threads for every call would cost as much as casting a few thousand rays).
+
+    The pipeline's pieces and the backends' ray parts use different pools, so a piece waiting
+    for its ray parts never waits for a thread it holds itself.
+    """
     with _pools_lock:
-        pool = _pools.get(threads)
+        pool = _pools.get((purpose, threads))
         if pool is None:
-            pool = _pools[threads] = ThreadPoolExecutor(threads,
-                                                        thread_name_prefix="lidarsim-cast")
+            pool = _pools[(purpose, threads)] = ThreadPoolExecutor(
+                threads, thread_name_prefix=f"lidarsim-{purpose}")
         return pool
+
+
+def in_pipeline_worker() -> bool:
+    """Whether the calling thread is processing a piece for :func:`ordered_map`: the pieces
+    already keep every core busy, so a backend should not split its rays further."""
+    return getattr(_worker, "active", False)
+
+
+def _as_worker(func: Callable[[T], R], item: T) -> R:
+    _worker.active = True
+    try:
+        return func(item)
+    finally:
+        _worker.active = False
+
+
+def piece_size(rays: int, workers: int, largest: int) -> int:
+    """Rays per piece: ``rays`` shared evenly by ``workers`` threads, at most ``largest``
+    (few, large pieces keep the per-piece Python work small; one per thread keeps every core
+    busy)."""
+    if workers <= 1:
+        return max(1, min(rays, largest))
+    pieces = max(workers, -(-rays // largest))
+    pieces = -(-pieces // workers) * workers  # a multiple of the thread count
+    return max(1, -(-rays // pieces))
 
 
 def ordered_map(func: Callable[[T], R], items: Iterable[T], workers: int) -> Iterator[R]:
@@ -68,21 +98,25 @@ def ordered_map(func: Callable[[T], R], items: Iterable[T], workers: int) -> Ite
         yield from map(func, items)
         return
     source = iter(items)
-    pool = ThreadPoolExecutor(workers, thread_name_prefix="lidarsim")
+    pool = shared_pool(workers, "pipeline")
     pending: deque[Future] = deque()
     try:
         for item in source:
-            pending.append(pool.submit(func, item))
+            pending.append(pool.submit(_as_worker, func, item))
             if len(pending) > workers:
                 break
         while pending:
             result = pending.popleft().result()
             for item in source:
-                pending.append(pool.submit(func, item))
+                pending.append(pool.submit(_as_worker, func, item))
                 break
             yield result
     finally:
-        pool.shutdown(wait=True, cancel_futures=True)
+        for future in pending:
+            future.cancel()
+        for future in pending:  # let started pieces finish before the caller moves on
+            if not future.cancelled():
+                future.exception()
 
 
 def split_range(start: int, stop: int, size: int) -> list[tuple[int, int]]:
@@ -98,8 +132,8 @@ def _matvec(matrices: np.ndarray, vectors: np.ndarray) -> np.ndarray:
     has its own: a frame does not change in the last bit with the size of its pieces (a piece
     of one ray of a moving target holds one pose, like a piece of a static one).
     """
-    n = max(len(matrices), len(vectors))
     shared = matrices[0] if len(matrices) == 1 else None
+    n = len(vectors) if shared is not None else max(len(matrices), len(vectors))
     x, y, z = vectors[:, 0], vectors[:, 1], vectors[:, 2]
     out = np.empty((n, 3))
     for i in range(3):

@@ -36,6 +36,7 @@ def _bench(as_json: bool, quick: bool) -> None:
     machine = result["machine"]
     console.print(f"[bold]lidarsim bench[/]: {machine['cpus']} CPUs, {machine['threads']} "
                   f"threads, NumPy {machine['numpy']}, embreex {machine['embreex'] or 'absent'}"
+                  f", kernels {machine['kernels']}"
                   f"{' (quick)' if quick else ''}. Rays per second (M = million), best of "
                   "several runs.")
     scenes: dict[str, Any] = result["scenes"]
@@ -58,8 +59,17 @@ def _bench(as_json: bool, quick: bool) -> None:
         cores = s.get("cores_used", {})
         busy = ", ".join(f"{k} {cores[k]:.2f}" for k in (*names, "bare_embree", "simulate")
                          if k in cores)
+        speedup = ", ".join(f"{b} {v:.2f}x" for b, v in
+                            sorted(s.get("backend_speedup_all_threads", {}).items()))
         console.print(f"{name} on one thread: {single}; simulate "
-                      f"{_rate(s['simulate_1thread'])}. Cores kept busy: {busy}")
+                      f"{_rate(s['simulate_1thread'])}. All threads over one: {speedup}. "
+                      f"Cores kept busy: {busy}")
+        stages = s.get("stages_1thread")
+        if stages:
+            parts = ", ".join(f"{k} {v:.0f}" for k, v in stages["ns_per_ray"].items())
+            kept = stages["pulses_after_cull"]
+            console.print(f"{name} pipeline stages on one thread, ns per ray: {parts}; "
+                          f"pulses left after culling {100 * kept:.1f} %")
     div = result.get("divergence")
     if div:
         console.print(f"Beam divergence, {div['sub_rays']} sub-rays per pulse: "

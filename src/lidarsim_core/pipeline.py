@@ -36,8 +36,9 @@ from ._version import __version__
 from .backends.base import RayBackend
 from .beam import SubRays, sub_rays_for
 from .builtin_sensors import get_sensor
-from .chunks import ordered_map, rotate, split_range, to_body, worker_threads
+from .chunks import ordered_map, piece_size, rotate, split_range, to_body, worker_threads
 from .config_io import validate_model
+from .cull import PulseCuller
 from .datasheet import SensorDatasheet
 from .guard import check_sensor_outside, guard_components
 from .errors import ConfigError, LidarsimError, PluginError
@@ -59,9 +60,9 @@ from .scenario import NamedComponent, Scenario, load_scenario, scenario_from_dic
 from .trajectories.base import Trajectory
 
 DEFAULT_NOISE_CHAIN = ("angular", "range")
-#: Rays per unit of work handed to a pipeline thread (a chunk is split into such pieces;
-#: with K sub-rays per pulse a piece holds PIECE_RAYS / K pulses).
-PIECE_RAYS = 16384
+#: Most rays per unit of work handed to a pipeline thread (a chunk is split into such pieces,
+#: about one per thread; with K sub-rays per pulse a piece holds PIECE_RAYS / K pulses).
+PIECE_RAYS = 65536
 #: Part label of false alarms (appended to the scene's parts when a model makes them).
 FALSE_ALARM_PART = "noise/false_alarm"
 #: Random stream of the detection draws.
@@ -120,6 +121,7 @@ class Simulation:
 
     def __init__(self, scenario: Scenario, registry: Registry | None = None) -> None:
         self.scenario = scenario
+        self._fixed_poses: dict[tuple[int, float | None], Poses] = {}
         registry = registry or get_registry()
         src = scenario.source
         self.sensor: SensorDatasheet = self._datasheet(scenario, registry)
@@ -145,6 +147,8 @@ class Simulation:
             offset += len(mesh.part_names)
         self.part_names = [f"{t.name}/{p}" for t in self.targets for p in t.mesh.part_names]
         self._setup_measurement(scenario)
+        #: Plan for skipping pulses that cannot reach a target (None: every pulse is cast).
+        self.culler: PulseCuller | None = PulseCuller.for_simulation(self)
         # third-party components that fail mid-run are reported with their name
         guard_components(self, registry)
 
@@ -258,12 +262,16 @@ class Simulation:
         t_frame = self.scenario.scan.frame_interval(frame)[0]
         for target in self.targets:  # build acceleration structures before the workers start
             self.backend.prepared(target.mesh)
-        piece_pulses = max(1, PIECE_RAYS // self.rays_per_pulse)
+        workers = worker_threads() if self.backend.thread_safe else 1
+        piece_pulses = piece_size(min(chunk, k1 - k0), workers,
+                                  max(1, PIECE_RAYS // self.rays_per_pulse))
         pieces = [(c, lo, hi) for c, (start, stop) in enumerate(split_range(k0, k1, chunk))
                   for lo, hi in split_range(start, stop, piece_pulses)]
 
         def work(piece: tuple[int, int, int]) -> dict[str, np.ndarray]:
             batch = self.pattern.rays_for_indices(np.arange(piece[1], piece[2], dtype=np.int64))
+            if self.culler is not None:  # only pulses that may reach a target go on
+                batch = batch.take(self.culler.keep(self, batch, t_frame))
             return self._process(batch, contexts, t_frame, frame)
 
         def merged(parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
@@ -273,7 +281,6 @@ class Simulation:
 
         done: list[dict[str, np.ndarray]] = []
         current = 0
-        workers = worker_threads() if self.backend.thread_safe else 1
         for (c, _, _), columns in zip(pieces, ordered_map(work, pieces, workers)):
             if c != current:
                 yield merged(done)
@@ -295,9 +302,18 @@ class Simulation:
 
     def _chunk_poses(self, trajectory: Trajectory, t: np.ndarray, t_frame: float) -> Poses:
         """Poses for a piece's rays: one pose (applied to all) when it cannot vary."""
-        if self.scenario.scan.motion == "frozen" or trajectory.is_static:
-            return self._poses(trajectory, t[:1], t_frame)
-        return self._poses(trajectory, t, t_frame)
+        frozen = self.scenario.scan.motion == "frozen"
+        if not (frozen or trajectory.is_static):
+            return self._poses(trajectory, t, t_frame)
+        # one pose per trajectory (and frame, when frozen): looked up once, not per piece
+        key = (id(trajectory), t_frame if frozen else None)
+        pose = self._fixed_poses.get(key)
+        if pose is None:
+            pose = self._poses(trajectory, np.array([t_frame]), t_frame)
+            if len(self._fixed_poses) > 256:
+                self._fixed_poses.clear()
+            self._fixed_poses[key] = pose
+        return pose
 
     def _pulse_frames(self, batch: RayBatch, contexts: list[NoiseContext], t_frame: float
                       ) -> tuple[np.ndarray, list[np.ndarray],

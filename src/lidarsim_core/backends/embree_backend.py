@@ -19,7 +19,8 @@ from typing import Any
 import numpy as np
 from pydantic import Field
 
-from ..chunks import shared_pool, worker_threads
+from .. import kernels
+from ..chunks import in_pipeline_worker, shared_pool, worker_threads
 from ..errors import BackendError
 from ..hookspecs import hookimpl
 from ..mesh import Mesh
@@ -45,6 +46,8 @@ class _PreparedEmbree:
     mesh: Mesh
     center: np.ndarray
     radius: float
+    #: (F, 3) first vertex of every face (for the float64 refinement kernel)
+    first_vertex: np.ndarray
 
 
 class EmbreeBackend(RayBackend):
@@ -81,20 +84,26 @@ class EmbreeBackend(RayBackend):
         scene = rtcore_scene.EmbreeScene()
         # relative to the box centre: float32 then resolves the mesh's own size, not its offset
         TriangleMesh(scene, np.ascontiguousarray(mesh.triangles - center, dtype=np.float32))
-        return _PreparedEmbree(scene, mesh, center, radius)
+        return _PreparedEmbree(scene, mesh, center, radius,
+                               np.ascontiguousarray(mesh.vertices[mesh.faces[:, 0]]))
 
     def _threads(self) -> int:
+        if in_pipeline_worker():  # the pipeline's pieces already use every core
+            return 1
         return self.options.threads or worker_threads()
 
     def intersect(self, prepared: _PreparedEmbree, origins: np.ndarray,
                   directions: np.ndarray) -> Hits:
         n = len(origins)
         face = np.empty(n, dtype=np.int64)
-        distance = np.full(n, np.nan)
-        normal = np.full((n, 3), np.nan)
+        if kernels.enabled():  # the refinement kernel writes every row
+            distance, normal = np.empty(n), np.empty((n, 3))
+        else:
+            distance, normal = np.full(n, np.nan), np.full((n, 3), np.nan)
         threads = self._threads()
-        # about four parts per thread balance rays that hit (slow) against misses (fast)
-        step = min(self.options.chunk_rays, max(_MIN_PART, -(-n // (4 * threads))))
+        # two parts per thread balance rays that hit (slow) against misses (fast)
+        step = n if threads <= 1 else max(_MIN_PART, -(-n // (2 * threads)))
+        step = min(self.options.chunk_rays, step)
         bounds = [(lo, min(lo + step, n)) for lo in range(0, n, step)]
         out = (face, distance, normal)
         if threads <= 1 or len(bounds) == 1:
@@ -112,6 +121,15 @@ class EmbreeBackend(RayBackend):
                    out: tuple[np.ndarray, np.ndarray, np.ndarray]) -> None:
         """Cast rays ``lo:hi`` and write their hits into ``out`` (runs on a worker thread)."""
         eps = self.options.epsilon_m
+        if kernels.enabled():  # the same arithmetic compiled: no temporaries, no GIL
+            from ..kernels.raycast import embree_rays, refine_hits
+
+            o32, d32 = embree_rays(origins[lo:hi], directions[lo:hi], prepared.center,
+                                   prepared.radius, eps)
+            face32 = prepared.scene.run(o32, d32)
+            refine_hits(face32, origins, directions, prepared.first_vertex,
+                        prepared.mesh.face_normals, eps, *out, lo)
+            return
         o, d = origins[lo:hi], directions[lo:hi]
         # start each ray just before the bounding sphere, relative to the mesh centre (float64),
         # so that float32 only ever sees coordinates of the mesh's own size

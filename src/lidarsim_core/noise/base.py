@@ -71,6 +71,20 @@ class Returns:
         return len(self.ray_index)
 
 
+@dataclass(frozen=True)
+class GaussianRayRotation:
+    """What a ray stage does, told to the pipeline so it can skip pulses early.
+
+    ``sigma_rad == 0``: the model leaves rays alone. Otherwise it turns each ray by two
+    angles ``ndtri(u1)·σ`` and ``ndtri(u2)·σ``, where ``u1, u2`` are the first two uniforms
+    of ``ctx.uniforms(ray_index, 2)``: the seed paper's angular error. Knowing this, the
+    pipeline bounds how far a pulse can turn from the uniforms alone
+    (:mod:`lidarsim_core.cull`).
+    """
+
+    sigma_rad: float
+
+
 class NoiseModel(Component):
     """A measurement-noise model. Override one or both stages; the defaults do nothing."""
 
@@ -78,6 +92,15 @@ class NoiseModel(Component):
                      ctx: NoiseContext) -> np.ndarray:
         """Return the directions the pulses actually fly ((N, 3) unit vectors)."""
         return directions
+
+    def ray_rotation(self, ctx: NoiseContext) -> GaussianRayRotation | None:
+        """Describe :meth:`perturb_rays` for culling (:class:`GaussianRayRotation`), or None
+        when it does something else. The default says "leaves rays alone" if the subclass
+        does not override :meth:`perturb_rays`, else None (no culling: always correct).
+        """
+        if type(self).perturb_rays is NoiseModel.perturb_rays:
+            return GaussianRayRotation(0.0)
+        return None
 
     def perturb_returns(self, returns: Returns, ctx: NoiseContext) -> Returns:
         """Return the returns with the measurement perturbed."""

@@ -19,7 +19,8 @@ from pydantic import Field
 
 from ..components import ComponentOptions
 from ..hookspecs import hookimpl
-from .base import NoiseContext, NoiseModel, Returns, perpendicular_basis
+from .. import kernels
+from .base import GaussianRayRotation, NoiseContext, NoiseModel, Returns, perpendicular_basis
 
 
 class AngularOptions(ComponentOptions):
@@ -47,12 +48,21 @@ class AngularError(NoiseModel):
         if sigma == 0.0 or len(directions) == 0:
             return directions
         angles = ctx.normals(ray_index, 2) * sigma
+        if kernels.enabled():  # the same arithmetic compiled, without the temporaries
+            from ..kernels.rotation import rotate_two_angles
+
+            return rotate_two_angles(np.ascontiguousarray(directions, dtype=np.float64), angles)
         u, v = perpendicular_basis(directions)
         # rotation by a1 about u, then by a2 about v, in closed form (Rodrigues; d, u, v is a
         # right-handed orthonormal basis): 7x faster than composing SciPy rotations per ray
         c1, s1 = np.cos(angles[:, 0]), np.sin(angles[:, 0])
         c2, s2 = np.cos(angles[:, 1]), np.sin(angles[:, 1])
         return (c1 * c2)[:, None] * directions + (c1 * s2)[:, None] * u - s1[:, None] * v
+
+    def ray_rotation(self, ctx: NoiseContext) -> GaussianRayRotation | None:
+        if type(self).perturb_rays is not AngularError.perturb_rays:  # a subclass changed it
+            return None
+        return GaussianRayRotation(self.sigma_rad(ctx))
 
 
 class RangeOptions(ComponentOptions):

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from ..hookspecs import hookimpl
-from .base import NoiseContext, Returns
+from .base import GaussianRayRotation, NoiseContext, Returns
 from .gaussian import AngularError, AngularOptions
 from .streams import per_pulse
 
@@ -31,6 +31,9 @@ class AngularPointError(AngularError):
     def perturb_rays(self, directions: np.ndarray, ray_index: np.ndarray,
                      ctx: NoiseContext) -> np.ndarray:
         return directions
+
+    def ray_rotation(self, ctx: NoiseContext) -> GaussianRayRotation | None:
+        return GaussianRayRotation(0.0)  # the flown ray is the nominal one
 
     def perturb_returns(self, returns: Returns, ctx: NoiseContext) -> Returns:
         returns.direction_measured = AngularError.perturb_rays(

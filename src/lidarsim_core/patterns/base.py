@@ -44,6 +44,10 @@ class RayBatch:
     def __len__(self) -> int:
         return len(self.index)
 
+    def take(self, rows: np.ndarray) -> "RayBatch":
+        """The rays at ``rows`` (indices into this batch)."""
+        return RayBatch(self.index[rows], self.t[rows], self.direction[rows], self.channel[rows])
+
 
 class ScanPattern(Component):
     """A scan pattern bound to one sensor datasheet.

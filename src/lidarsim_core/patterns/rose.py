@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 from pydantic import Field
 
+from .. import kernels
 from ..components import ComponentOptions
 from ..hookspecs import hookimpl
 from .base import RayBatch, ScanPattern
@@ -66,6 +67,14 @@ class RosePattern(ScanPattern):
 
     def rays_for_indices(self, index: np.ndarray) -> RayBatch:
         index = np.asarray(index, dtype=np.int64)
+        if kernels.enabled() and type(self).time_of_index is ScanPattern.time_of_index:
+            from ..kernels.rose import rose_directions
+
+            o = self.options
+            t, direction = rose_directions(np.ascontiguousarray(index), float(self.rate_hz),
+                                           float(o.b), self.amplitude_rad, o.turn_period_s,
+                                           o.rotation_per_turn_deg, o.phase_deg)
+            return RayBatch(index, t, direction, np.zeros(len(index), dtype=np.int16))
         t = self.time_of_index(index)
         phi, turn = self.phi_and_turn(t)
         r = self.amplitude_rad * np.sin(self.options.b * phi)

@@ -1,0 +1,78 @@
+"""Compiled kernels of the simulation hot path (optional; extra ``fast``, needs numba).
+
+The pipeline is written in vectorised NumPy, and that code stays the reference. When numba is
+installed, a few steps that NumPy cannot do at the speed of an Embree ray cast run as compiled
+loops instead:
+
+* :mod:`.philox`: the counter-based random numbers of :mod:`lidarsim_core.rng`, bit for bit
+  the same words as NumPy's ``Philox`` (integer arithmetic), but generated only for the rays
+  asked for;
+* :mod:`.rotation`: the seed paper's angular error (two rotations about axes perpendicular to
+  the ray), the same arithmetic in the same order as the NumPy code;
+* :mod:`.trig` and :mod:`.rose`: the rose pattern with a sine and cosine that LLVM can inline
+  (within 2 ulp of the C library's);
+* :mod:`.cull`: a conservative test that skips pulses which cannot reach any target's
+  bounding box, even after their angular error and beam divergence, before anything else is
+  computed for them.
+
+Environment variables
+---------------------
+``LIDARSIM_KERNELS``
+    ``auto`` (default): use the kernels when numba can be imported; ``numba``: require them
+    (an error names the missing package); ``numpy``: never use them.
+
+Kernels are compiled on first use and cached on disk by numba (``NUMBA_CACHE_DIR`` moves the
+cache), so only the first run on a machine pays the compile time (a few seconds).
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+
+from ..errors import ConfigError
+
+#: Values accepted by ``LIDARSIM_KERNELS``.
+MODES = ("auto", "numba", "numpy")
+
+
+@functools.lru_cache(maxsize=1)
+def numba_importable() -> bool:
+    """Whether numba can be imported here (checked once; importing it takes ~0.3 s)."""
+    try:
+        import numba  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def mode() -> str:
+    """The kernel mode from ``LIDARSIM_KERNELS`` (validated)."""
+    value = os.environ.get("LIDARSIM_KERNELS", "auto").strip().lower() or "auto"
+    if value not in MODES:
+        raise ConfigError(f"LIDARSIM_KERNELS must be one of {', '.join(MODES)}, not {value!r}",
+                          source="environment", field="LIDARSIM_KERNELS")
+    return value
+
+
+def enabled() -> bool:
+    """Whether the compiled kernels are used (see ``LIDARSIM_KERNELS``)."""
+    selected = mode()
+    if selected == "numpy":
+        return False
+    if numba_importable():
+        return True
+    if selected == "numba":
+        raise ConfigError("LIDARSIM_KERNELS=numba but numba is not installed; "
+                          "pip install 'lidarsim-core[fast]'", source="environment",
+                          field="LIDARSIM_KERNELS")
+    return False
+
+
+def describe() -> str:
+    """``numba x.y`` when the kernels are in use, else ``numpy``."""
+    if not enabled():
+        return "numpy"
+    import numba
+
+    return f"numba {numba.__version__}"

@@ -1,0 +1,137 @@
+"""Culling pulses that cannot reach a target changes no result (lidarsim_core.cull).
+
+Each scene runs twice on the same Simulation, with its culler and with ``culler = None``
+(every pulse cast), and every column of the point record must be identical.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from lidarsim_core.cull import PulseCuller, cull_tree
+from lidarsim_core.demo import demo_scenario
+from lidarsim_core.noise.base import NoiseModel
+from lidarsim_core.pipeline import Simulation
+from lidarsim_core.scenario import load_scenario, scenario_from_dict
+
+pytest.importorskip("numba", reason="culling runs with the compiled kernels (extra 'fast')")
+EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "scenarios"
+
+
+def _demo(**changes) -> dict:
+    data = demo_scenario(duration_s=0.1, detail="coarse", backend="numpy").model_dump(
+        mode="json")
+    for key, value in changes.items():
+        section, _, field = key.partition("__")
+        if field:
+            data[section][field] = value
+        else:
+            data[section] = value
+    return data
+
+
+def _wide_angular_error() -> dict:
+    return _demo(noise=[{"name": "angular", "options": {"sigma_deg": 1.5}}, {"name": "range"}])
+
+
+def _beam_and_returns() -> dict:
+    data = _demo()
+    data["sensor"]["beam"] = {"sub_rays": 9, "divergence_deg": [0.8, 0.8]}
+    data["sensor"]["detection"] = {}
+    data["sensor"]["returns"] = {"mode": "multi", "range_resolution_m": 0.3}
+    return data
+
+
+def _two_targets_moving_sensor() -> dict:
+    data = _demo()
+    data["sensor"].pop("pose")
+    data["sensor"]["trajectory"] = {"kind": "constant_velocity", "position_m": [0, 0, 0],
+                                    "velocity_m_s": [0.5, 2.0, -1.0],
+                                    "angular_velocity_deg_s": [0, 3.0, 6.0]}
+    data["targets"].append({"name": "box", "mesh": {"model": "box", "options": {
+        "extents_m": [2.0, 2.0, 2.0]}}, "pose": {"position_m": [12.0, -6.0, 1.0]}})
+    return data
+
+
+SCENES = {
+    "demo": lambda: scenario_from_dict(_demo()),
+    "wide-angular-error": lambda: scenario_from_dict(_wide_angular_error()),
+    "beam-detection-multi-return": lambda: scenario_from_dict(_beam_and_returns()),
+    "two-targets-moving-sensor": lambda: scenario_from_dict(_two_targets_moving_sensor()),
+    "tumbling-hold": lambda: load_scenario(EXAMPLES / "envisat_tumbling_hold.yaml"),
+    "flyaround": lambda: load_scenario(EXAMPLES / "flyaround_50m.yaml"),
+    "frozen-risley": lambda: scenario_from_dict(_demo(
+        sensor={"datasheet": "livox-mid70", "pose": {"position_m": [0, 0, 0]}},
+        scan={"duration_s": 0.05, "motion": "frozen"})),
+}
+
+
+@pytest.mark.parametrize("scene", sorted(SCENES))
+def test_culling_changes_nothing(scene):
+    sim = Simulation(SCENES[scene]())
+    assert sim.culler is not None
+    culled = sim.run_frame(0)
+    sim.culler = None
+    every_pulse = sim.run_frame(0)
+    assert len(every_pulse) > 50
+    assert culled.columns.keys() == every_pulse.columns.keys()
+    for name, column in every_pulse.columns.items():
+        np.testing.assert_array_equal(culled[name], column, err_msg=name)
+
+
+def test_culling_drops_most_pulses_that_miss():
+    sim = Simulation(demo_scenario(duration_s=0.2, detail="medium"))
+    k0, k1 = sim.frame_rays(0)
+    batch = sim.pattern.rays_for_indices(np.arange(k0, k1))
+    kept = sim.culler.keep(sim, batch, 0.0)
+    hits = len(sim.run_frame(0))
+    # 11 % of the pulses hit Envisat; the culler keeps them all and not many more
+    assert hits <= len(kept) < 0.35 * len(batch)
+
+
+def test_margin_covers_the_largest_possible_draw_and_the_beam():
+    sim = Simulation(scenario_from_dict(_wide_angular_error()))
+    from lidarsim_core.rng import MAX_ABS_NORMAL
+
+    assert sim.culler.margin_rad == pytest.approx(
+        np.sqrt(2) * MAX_ABS_NORMAL * np.radians(1.5), rel=1e-5)
+    beam = Simulation(scenario_from_dict(_beam_and_returns()))
+    assert beam.culler.margin_rad > np.sqrt(2) * MAX_ABS_NORMAL * np.radians(0.1)
+
+
+def test_no_culling_for_models_it_cannot_bound_or_false_alarms():
+    class Wobble(NoiseModel):
+        name = "wobble"
+
+        def perturb_rays(self, directions, ray_index, ctx):
+            return directions[:, [0, 2, 1]]
+
+    sim = Simulation(scenario_from_dict(_demo()))
+    sim.noise.append(Wobble())
+    assert PulseCuller.for_simulation(sim) is None
+    data = _demo(noise=[{"name": "angular"}, {"name": "range"}, {"name": "false_alarms",
+                                                                  "options": {"rate_hz": 1e5}}])
+    assert Simulation(scenario_from_dict(data)).culler is None
+
+
+def test_no_culling_without_the_kernels(monkeypatch):
+    monkeypatch.setenv("LIDARSIM_KERNELS", "numpy")
+    assert Simulation(scenario_from_dict(_demo())).culler is None
+
+
+def test_cull_tree_encloses_every_triangle_and_children_sit_in_parents():
+    mesh = Simulation(demo_scenario(duration_s=0.01, detail="medium")).targets[0].mesh
+    lo, hi, child = cull_tree(mesh)
+    assert child[0] >= 0 and (child >= -1).all() and len(lo) > 16
+    leaves = np.flatnonzero(child < 0)
+    tri = mesh.triangles
+    inside = np.zeros(len(tri), dtype=bool)
+    for leaf in leaves:
+        inside |= ((tri.min(axis=1) >= lo[leaf]) & (tri.max(axis=1) <= hi[leaf])).all(axis=1)
+    assert inside.all()
+    for node in np.flatnonzero(child >= 0):
+        for c in (child[node], child[node] + 1):
+            assert (lo[c] >= lo[node]).all() and (hi[c] <= hi[node]).all()
