@@ -29,7 +29,21 @@ def test_benchmark_measures_every_backend_on_the_scan_rays():
     else:
         assert scene["bare_embree_1thread"] > 0
         assert math.isclose(scene["simulate_over_bare"], scene["simulate"] / scene["bare_embree"])
-    assert result["machine"]["cpus"] >= 1
+    assert result["machine"]["cpus"] >= 1 and result["machine"]["kernels"]
+    assert set(scene["backend_speedup_all_threads"]) == set(scene["backends"])
+    stages = scene["stages_1thread"]
+    assert set(stages["ns_per_ray"]) == {"pattern", "cull", "cast", "rest"}
+    assert all(v >= 0 for v in stages["ns_per_ray"].values())
+    # the culler keeps every pulse that hits
+    assert scene["hit_fraction"] <= stages["pulses_after_cull"] <= 1.0
+
+
+def test_close_scene_hits_more_than_the_demo():
+    result = bench.run_benchmark(quick=True, duration_s=0.02, scenes={
+        "far": "coarse", "near": {"detail": "coarse", "range_m": 12.0}})
+    far, near = result["scenes"]["far"], result["scenes"]["near"]
+    assert near["range_m"] == 12.0 and far["range_m"] == 30.0
+    assert near["hit_fraction"] > 2 * far["hit_fraction"]
 
 
 def test_scan_rays_are_the_rays_the_pipeline_casts():

@@ -156,3 +156,7 @@ def test_kernel_mode_is_validated_and_numba_can_be_required(monkeypatch):
         kernels.enabled()
     monkeypatch.setenv("LIDARSIM_KERNELS", "auto")
     assert kernels.enabled() is False and kernels.describe() == "numpy"
+
+
+def test_warm_up_compiles_every_kernel():
+    assert kernels.warm_up() is True

@@ -107,6 +107,7 @@ def demo(out: Path = typer.Option(Path("demo-out"), "--out", "-o", help="Output 
 def _demo(out: Path, duration: float, backend: str, detail: str, seed: int) -> None:
     import yaml
 
+    from . import kernels
     from .demo import demo_scenario
     from .errors import OutputError
     from .pipeline import Simulation
@@ -115,6 +116,7 @@ def _demo(out: Path, duration: float, backend: str, detail: str, seed: int) -> N
         raise OutputError("--out must be a directory", source=out)
     out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
+    kernels.warm_up()  # compile or load the kernels outside the timed runs
     results = {}
     for label, noisy in (("with_errors", True), ("without_errors", False)):
         scenario = demo_scenario(duration_s=duration, noise=noisy, detail=detail,

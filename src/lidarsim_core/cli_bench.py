@@ -36,7 +36,7 @@ def _bench(as_json: bool, quick: bool) -> None:
     machine = result["machine"]
     console.print(f"[bold]lidarsim bench[/]: {machine['cpus']} CPUs, {machine['threads']} "
                   f"threads, NumPy {machine['numpy']}, embreex {machine['embreex'] or 'absent'}"
-                  f", kernels {machine['kernels']}"
+                  f", kernels {machine.get('kernels', 'numpy')}"
                   f"{' (quick)' if quick else ''}. Rays per second (M = million), best of "
                   "several runs.")
     scenes: dict[str, Any] = result["scenes"]

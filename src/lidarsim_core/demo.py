@@ -16,9 +16,10 @@ DEMO_RANGE_M = 30.0
 _ENVISAT_BOX_CENTRE_M = (8.0, 3.3, -0.17)
 
 
-def demo_target_pose() -> dict[str, Any]:
+def demo_target_pose(range_m: float = DEMO_RANGE_M) -> dict[str, Any]:
     """The demo's Envisat pose: long axis across the view (scene +Y), nadir face and solar
-    array turned toward the sensor, then yawed 35° and pitched 20° so three sides show."""
+    array turned toward the sensor, then yawed 35° and pitched 20° so three sides show; the
+    centre of its bounding box ``range_m`` ahead of the sensor (30 m)."""
     import numpy as np
     from scipy.spatial.transform import Rotation
 
@@ -26,14 +27,14 @@ def demo_target_pose() -> dict[str, Any]:
     facing = Rotation.from_matrix(np.array([[0.0, 0.0, -1.0], [1.0, 0.0, 0.0],
                                             [0.0, -1.0, 0.0]]))
     rotation = Rotation.from_euler("zy", [35.0, -20.0], degrees=True) * facing
-    position = np.array([DEMO_RANGE_M, 0.0, 0.0]) - rotation.apply(_ENVISAT_BOX_CENTRE_M)
+    position = np.array([range_m, 0.0, 0.0]) - rotation.apply(_ENVISAT_BOX_CENTRE_M)
     return {"position_m": [round(float(v), 6) for v in position],
             "quaternion_xyzw": [round(float(v), 9) for v in rotation.as_quat()]}
 
 
 def demo_scenario(*, duration_s: float = 1.0, noise: bool = True, detail: str = "medium",
                   backend: str = "auto", seed: int = 2024,
-                  sensor: str = "livox-mid70-rose") -> Scenario:
+                  sensor: str = "livox-mid70-rose", range_m: float = DEMO_RANGE_M) -> Scenario:
     """The demo scenario: Envisat 30 m in front of the sensor, seen obliquely.
 
     Parameters
@@ -50,6 +51,8 @@ def demo_scenario(*, duration_s: float = 1.0, noise: bool = True, detail: str = 
         Noise seed.
     sensor
         Catalogue sensor name.
+    range_m
+        Distance from the sensor to the centre of Envisat's bounding box (m).
     """
     data: dict[str, Any] = {
         "seed": seed,
@@ -57,7 +60,7 @@ def demo_scenario(*, duration_s: float = 1.0, noise: bool = True, detail: str = 
         "targets": [{
             "name": "envisat",
             "mesh": {"model": "envisat", "options": {"detail": detail}},
-            "pose": demo_target_pose(),
+            "pose": demo_target_pose(range_m),
         }],
         "scan": {"duration_s": duration_s},
         "backend": {"name": backend},

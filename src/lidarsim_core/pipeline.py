@@ -3,6 +3,8 @@
 For every chunk of rays (vectorised throughout):
 
 1. the scan pattern gives each ray's index, emission time, nominal direction and channel;
+   pulses that cannot reach any target even after their angular error are dropped here
+   (:mod:`lidarsim_core.cull`, with the compiled kernels; it changes no result);
 2. ray-stage noise models perturb the directions actually flown (paper: angular error);
 3. the sensor and every target pose are looked up at each ray's time (or at frame start when
    ``scan.motion`` is ``frozen``) and the rays are moved into each target's body frame; with
@@ -250,10 +252,10 @@ class Simulation:
                     ) -> Iterator[dict[str, np.ndarray]]:
         """Point-record columns of ``frame``, one dictionary per chunk of emitted rays.
 
-        Each chunk is processed in pieces of at most :data:`PIECE_RAYS` rays on
-        :func:`~lidarsim_core.chunks.worker_threads` threads (``LIDARSIM_THREADS``; one thread
-        if the backend is not ``thread_safe``); every ray's result depends only on its index,
-        so neither setting changes the output.
+        Each chunk is processed in about one piece per thread (at most :data:`PIECE_RAYS`
+        rays each) on :func:`~lidarsim_core.chunks.worker_threads` threads
+        (``LIDARSIM_THREADS``; one thread if the backend is not ``thread_safe``); every ray's
+        result depends only on its index, so neither setting changes the output.
         """
         check_sensor_outside(self, frame)
         chunk = chunk_rays or self.scenario.chunk_rays

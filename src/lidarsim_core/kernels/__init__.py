@@ -69,6 +69,34 @@ def enabled() -> bool:
     return False
 
 
+def warm_up() -> bool:
+    """Compile (or load from numba's cache) every kernel now, so that the first simulation is
+    not timed with it; returns whether the kernels are in use."""
+    if not enabled():
+        return False
+    import numpy as np
+
+    from .cull import cull_pulses
+    from .philox import ray_uniforms
+    from .raycast import embree_rays, refine_hits
+    from .rose import rose_directions
+    from .rotation import rotate_two_angles
+
+    one = np.zeros((1, 3))
+    one[0, 0] = 1.0
+    index = np.zeros(1, dtype=np.int64)
+    ray_uniforms(np.zeros(2, dtype=np.uint64), index, 1)
+    rose_directions(index, 1.0, 4.0, 0.5, 1.0, 5.0, 0.0)
+    rotate_two_angles(one, np.zeros((1, 2)))
+    embree_rays(one, one, np.zeros(3), 1.0, 1e-6)
+    refine_hits(np.full(1, -1, dtype=np.int32), one, one, one, one, 1e-6,
+                np.empty(1, dtype=np.int64), np.empty(1), np.empty((1, 3)), 0)
+    box = np.array([[-1.0, -1.0, -1.0]])
+    cull_pulses(one, np.eye(3)[None, None], one[None], np.zeros((1, 1)), box, -box,
+                np.full(1, -1, dtype=np.int64), index)
+    return True
+
+
 def describe() -> str:
     """``numba x.y`` when the kernels are in use, else ``numpy``."""
     if not enabled():
