@@ -155,8 +155,13 @@ def load_mesh_file(path: str | Path, *, scale: float = 1.0, source: str | None =
 
     path = Path(path)
     where = f"{source}: field '{field}': {path}" if source and field else str(path)
+    if path.is_dir():
+        raise MeshError("is a directory, not a mesh file", source=where)
     if not path.is_file():
         raise MeshError("mesh file not found", source=where)
+    problem = _truncation(path)
+    if problem:
+        raise MeshError(problem, source=where)
     try:
         loaded = trimesh.load(str(path), process=False)
     except Exception as exc:  # trimesh raises many types for garbage input
@@ -176,6 +181,27 @@ def load_mesh_file(path: str | Path, *, scale: float = 1.0, source: str | None =
     if not parts or all(len(p[2]) == 0 for p in parts):
         raise MeshError("mesh file contains no triangles", source=where)
     return merge_parts(parts, name=path.stem, scale=scale, source=where)
+
+
+def _truncation(path: Path) -> str | None:
+    """Why ``path`` is visibly incomplete (empty, or a binary STL shorter than its header
+    says), None otherwise: trimesh would otherwise read what is there and report no or fewer
+    triangles."""
+    size = path.stat().st_size
+    if size == 0:
+        return "mesh file is empty"
+    if path.suffix.lower() != ".stl" or size < 84:
+        return None
+    with path.open("rb") as stream:
+        head = stream.read(84)
+    if head.lstrip()[:5].lower() == b"solid" and b"\0" not in head[:80]:
+        return None  # ASCII STL
+    count = int.from_bytes(head[80:84], "little")
+    expected = 84 + 50 * count
+    if size < expected:
+        return (f"binary STL is truncated: its header announces {count:,} triangles "
+                f"({expected:,} bytes) but the file has {size:,} bytes")
+    return None
 
 
 def _colour_material(geom: Any) -> dict[str, Any] | None:
