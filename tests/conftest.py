@@ -14,14 +14,18 @@ pytest_plugins = ["pytester"]
 
 
 def pytest_report_header(config: pytest.Config) -> list[str]:
-    """Say which ray backends the conformance suite runs here and which it skips, and why."""
+    """Say which ray backends the conformance suite runs here and which it skips, and why, and
+    whether the compiled kernels are in use."""
     from lidarsim_core.plugins import get_registry
 
     lines = []
     for entry in get_registry().iter("ray_backend"):
         ok, why = entry.obj.is_available()
         lines.append(f"  {entry.name}: {'runs' if ok else 'SKIPPED: ' + why} ({entry.provider})")
-    return ["ray backends (conformance suite):"] + lines
+    from lidarsim_core import kernels
+
+    return ["ray backends (conformance suite):"] + lines + [
+        f"compiled kernels: {kernels.describe()} (LIDARSIM_KERNELS={kernels.mode()})"]
 
 
 @pytest.fixture

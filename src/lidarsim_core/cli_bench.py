@@ -32,7 +32,7 @@ def _bench(as_json: bool, quick: bool) -> None:
     from rich.console import Console
     from rich.table import Table
 
-    console = Console(highlight=False, width=max(100, Console().width))
+    console = Console(highlight=False, width=max(112, Console().width))
     machine = result["machine"]
     console.print(f"[bold]lidarsim bench[/]: {machine['cpus']} CPUs, {machine['threads']} "
                   f"threads, NumPy {machine['numpy']}, embreex {machine['embreex'] or 'absent'}"
