@@ -60,6 +60,7 @@ from .returns import Candidates, ReturnsConfig, SubRayHits, group_sub_rays, sele
 from .rng import ray_uniforms
 from .scenario import NamedComponent, Scenario, load_scenario, scenario_from_dict
 from .trajectories.base import Trajectory
+from .vec3 import rowdot, scale_rows
 
 DEFAULT_NOISE_CHAIN = ("angular", "range")
 #: Most rays per unit of work handed to a pipeline thread (a chunk is split into such pieces,
@@ -370,7 +371,7 @@ class Simulation:
             target_id[closer] = j
             face[closer] = hit_face
             part[closer] = target.mesh.face_part[hit_face] + target.part_offset
-            cos_inc[closer] = np.abs(np.einsum("ij,ij->i", hits.normal[closer], d_body[closer]))
+            cos_inc[closer] = np.abs(rowdot(hits.normal[closer], d_body[closer]))
         return flown, axes, SubRayHits(best, target_id, face, part, cos_inc)
 
     def _candidates(self, batch: RayBatch, hits: SubRayHits,
@@ -470,13 +471,14 @@ class Simulation:
                                          cand.range_true[rows][reported],
                                          range_measured[reported], number[reported])
             range_measured[reported], direction_measured[reported] = r_meas, d_meas
-        measured = direction_measured * range_measured[:, None]
+        measured = scale_rows(direction_measured, range_measured)
         range_true = cand.range_true[rows]
         if self.sub_rays is None:
-            true = direction * range_true[:, None]
+            true = scale_rows(direction, range_true)
         else:  # the strongest sub-ray's own surface point
-            true = self.sub_rays.direction_of(cand.sub_ray[rows], direction, axes[0][pulse],
-                                              axes[1][pulse]) * range_true[:, None]
+            true = scale_rows(self.sub_rays.direction_of(cand.sub_ray[rows], direction,
+                                                         axes[0][pulse], axes[1][pulse]),
+                              range_true)
         azimuth, elevation = az_el_from_directions(batch.direction[pulse])
         return {
             "x": measured[:, 0], "y": measured[:, 1], "z": measured[:, 2],
@@ -496,7 +498,10 @@ class Simulation:
                number: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Return-stage noise of reported returns; return r > 1 of a pulse draws from its own
         streams (:func:`~lidarsim_core.noise.streams.for_return`)."""
-        numbers = np.unique(number) if len(number) else number
+        if len(number) == 0 or number.min() == number.max():  # the usual case: one value
+            numbers = number[:1]
+        else:
+            numbers = np.unique(number)
         if len(numbers) <= 1:
             r = int(numbers[0]) if len(numbers) else 1
             returns = Returns(batch.index[pulse], direction, range_true, range_measured.copy(),
