@@ -56,7 +56,22 @@ def _two_targets_moving_sensor() -> dict:
     return data
 
 
+def _spinning_all_around() -> dict:
+    """A 360° scanner among boxes beside, behind, above and across it: every face of the cube
+    map, and a box straddling the sensor's planes (one pose: the cube-map path)."""
+    data = _demo(sensor={"datasheet": "velodyne-vlp16", "pose": {"position_m": [0, 0, 0]}},
+                 scan={"duration_s": 0.1})
+    data["targets"] = [
+        {"name": name, "mesh": {"model": "box", "options": {"extents_m": extents}},
+         "pose": {"position_m": position, "euler_deg": [0, 0, yaw]}}
+        for name, extents, position, yaw in [
+            ("beside", [2, 2, 2], [0, 6, 0], 0), ("behind", [1, 3, 2], [-8, 0, 0.5], 30),
+            ("across", [12, 1, 1], [0, -4, 0], 10), ("above", [4, 4, 1], [1, 1, 5], 0)]]
+    return data
+
+
 SCENES = {
+    "spinning-all-around": lambda: scenario_from_dict(_spinning_all_around()),
     "demo": lambda: scenario_from_dict(_demo()),
     "wide-angular-error": lambda: scenario_from_dict(_wide_angular_error()),
     "beam-detection-multi-return": lambda: scenario_from_dict(_beam_and_returns()),

@@ -13,8 +13,12 @@ by construction (the uniforms behind it are at least 2**-53 from 0 and 1). Two r
 hypot(a1, a2)`` (a right spherical triangle), and a beam's sub-rays add its largest sub-ray
 angle. So the flown ray and its sub-rays stay within ``margin`` of the nominal ray, and a pulse
 can reach only a target whose boxes (:func:`cull_tree`), grown by ``margin`` times the
-farthest distance to the target's bounding box, the nominal ray meets. The tests run scans
-with and without culling and compare every column.
+farthest distance to the target's bounding box, the nominal ray meets. When the sensor and
+every target hold one pose for a whole piece (static scenes, ``motion: frozen``), the grown
+leaf boxes are projected once onto a cube map of directions and each pulse costs one lookup
+(:func:`lidarsim_core.kernels.cull.direction_grid`); otherwise each pulse's nominal ray is
+tested against the box tree in each target's frame. The tests run scans with and without
+culling and compare every column.
 
 Culling is used when the compiled kernels are (:mod:`lidarsim_core.kernels`) and every
 ray-stage noise model describes itself through
@@ -26,7 +30,7 @@ from __future__ import annotations
 
 import math
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -41,7 +45,9 @@ if TYPE_CHECKING:
     from .pipeline import Simulation
 
 #: Levels of median splits of a mesh's triangles into culling boxes (up to 2**levels leaves).
-CULL_TREE_LEVELS = 5
+CULL_TREE_LEVELS = 6
+#: Cells along each edge of a face of the cube map of reachable directions (one pose).
+GRID_CELLS = 256
 #: Groups smaller than twice this are not split further.
 MIN_BOX_TRIANGLES = 8
 
@@ -57,6 +63,9 @@ class PulseCuller:
     """
 
     margin_rad: float
+    #: Cube maps of reachable directions by pose (:meth:`keep`), newest last.
+    _grids: dict[bytes, np.ndarray | None] = field(default_factory=dict, compare=False,
+                                                   repr=False)
 
     @classmethod
     def for_simulation(cls, sim: "Simulation") -> "PulseCuller | None":
@@ -78,7 +87,7 @@ class PulseCuller:
 
     def keep(self, sim: "Simulation", batch: RayBatch, t_frame: float) -> np.ndarray:
         """Rows of ``batch`` whose pulses may reach a target (int64, ascending)."""
-        from .kernels.cull import cull_pulses
+        from .kernels.cull import cull_by_grid, cull_pulses
 
         sensor = sim._chunk_poses(sim.sensor_trajectory, batch.t, t_frame)
         sensor_rotation = sensor.rotation.as_matrix().reshape(-1, 3, 3)
@@ -101,7 +110,13 @@ class PulseCuller:
             roots.append(nodes)
             nodes += len(lo)
         m = max(len(r) for r in rotations)
-        return cull_pulses(np.ascontiguousarray(batch.direction, dtype=np.float64),
+        directions = np.ascontiguousarray(batch.direction, dtype=np.float64)
+        if m == 1:  # one pose for the piece: look the directions up in a cube map
+            grid = self._grid(rotations, origins, grows, trees)
+            if grid is None:  # the sensor is inside a target's box: nothing to cull
+                return np.arange(len(batch), dtype=np.int64)
+            return cull_by_grid(directions, grid)
+        return cull_pulses(directions,
                            np.ascontiguousarray([np.broadcast_to(r, (m, 3, 3))
                                                  for r in rotations]),
                            np.ascontiguousarray([np.broadcast_to(o, (m, 3)) for o in origins]),
@@ -109,6 +124,31 @@ class PulseCuller:
                            np.concatenate([t[0] for t in trees]),
                            np.concatenate([t[1] for t in trees]),
                            np.concatenate([t[2] for t in trees]), np.array(roots, dtype=np.int64))
+
+
+    def _grid(self, rotations: list[np.ndarray], origins: list[np.ndarray],
+              grows: list[np.ndarray], trees: list[tuple[np.ndarray, ...]]
+              ) -> np.ndarray | None:
+        """The cube map of the directions that may reach a target from one pose of everything
+        (:func:`lidarsim_core.kernels.cull.direction_grid`), cached by that pose."""
+        from .kernels.cull import direction_grid
+
+        key = b"".join(np.ascontiguousarray(a).tobytes() for a in (*rotations, *origins, *grows))
+        if key in self._grids:
+            return self._grids[key]
+        corners = []
+        for rotation, origin, grow, (lo, hi, child) in zip(rotations, origins, grows, trees):
+            leaf = child < 0
+            low, high = lo[leaf] - grow[0], hi[leaf] + grow[0]
+            # the eight corners of each grown leaf box, body frame -> sensor frame
+            pick = np.array([[i & 1, (i >> 1) & 1, (i >> 2) & 1] for i in range(8)], dtype=bool)
+            body = np.where(pick[None], high[:, None, :], low[:, None, :])
+            corners.append((body - origin[0]) @ rotation[0])
+        grid = direction_grid(np.ascontiguousarray(np.concatenate(corners)), GRID_CELLS)
+        if len(self._grids) >= 16:  # poses of a frozen sequence: keep the newest few
+            self._grids.pop(next(iter(self._grids)))
+        self._grids[key] = grid
+        return grid
 
 
 _trees: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}

@@ -93,3 +93,83 @@ def cull_pulses(directions, rotation, origin, grow, box_lo, box_hi, first_child,
             keep[kept] = i
             kept += 1
     return keep[:kept]
+
+
+@njit(nogil=True, cache=True)
+def direction_grid(corners, cells):  # noqa: ANN001, ANN201
+    """A cube map of the directions that may meet any of the boxes, or None.
+
+    ``corners`` are the (B, 8, 3) corners of boxes in the sensor frame. Face ``f`` of the map
+    (axis ``f // 2``, sign ``+`` for even ``f``) covers the directions whose largest component
+    is that axis with that sign; cell ``(i, j)`` of a face is set when a direction in it may
+    meet a box: the bounding rectangle of the box's corners projected on the face (exact for
+    a box entirely on the face's side; a box straddling the face's plane sets the whole face,
+    as the projection is unbounded). Returns None when a box contains the origin.
+    """
+    grid = np.zeros((6, cells, cells), dtype=np.uint8)
+    half = cells / 2.0
+    for b in range(corners.shape[0]):
+        box = corners[b]
+        inside = True  # is the origin inside the box (its corners on both sides of each axis)?
+        for axis in range(3):
+            inside = inside and box[:, axis].min() <= 0.0 <= box[:, axis].max()
+        if inside:
+            return None
+        for face in range(6):
+            axis = face // 2
+            sign = 1.0 if face % 2 == 0 else -1.0
+            u_axis = (axis + 1) % 3
+            v_axis = (axis + 2) % 3
+            depth_min, depth_max = np.inf, -np.inf
+            u_min, u_max, v_min, v_max = np.inf, -np.inf, np.inf, -np.inf
+            for c in range(8):
+                depth = sign * box[c, axis]
+                depth_min = min(depth_min, depth)
+                depth_max = max(depth_max, depth)
+                if depth > 0.0:
+                    u, v = box[c, u_axis] / depth, box[c, v_axis] / depth
+                    u_min, u_max = min(u_min, u), max(u_max, u)
+                    v_min, v_max = min(v_min, v), max(v_max, v)
+            if depth_max <= 0.0:
+                continue  # the box is behind this face
+            if depth_min <= 0.0:
+                i0, i1, j0, j1 = 0, cells - 1, 0, cells - 1
+            else:  # a hair wider than the rectangle, for the rounding of the rays' u, v
+                i0 = min(max(int(math.floor((u_min - 1e-9 + 1.0) * half)), 0), cells - 1)
+                i1 = min(max(int(math.floor((u_max + 1e-9 + 1.0) * half)), 0), cells - 1)
+                j0 = min(max(int(math.floor((v_min - 1e-9 + 1.0) * half)), 0), cells - 1)
+                j1 = min(max(int(math.floor((v_max + 1e-9 + 1.0) * half)), 0), cells - 1)
+                if u_max < -1.0 - 1e-9 or u_min > 1.0 + 1e-9 or v_max < -1.0 - 1e-9 \
+                        or v_min > 1.0 + 1e-9:
+                    continue  # the box is seen only through other faces
+            grid[face, i0:i1 + 1, j0:j1 + 1] = 1
+    return grid
+
+
+@njit(nogil=True, cache=True)
+def cull_by_grid(directions, grid):  # noqa: ANN001, ANN201
+    """Indices of the directions whose cell of :func:`direction_grid`'s cube map is set."""
+    n = directions.shape[0]
+    cells = grid.shape[1]
+    half = cells / 2.0
+    keep = np.empty(n, dtype=np.int64)
+    kept = 0
+    for i in range(n):
+        x, y, z = directions[i, 0], directions[i, 1], directions[i, 2]
+        ax, ay, az = abs(x), abs(y), abs(z)
+        if ax >= ay and ax >= az:
+            face, depth, u, v = (0 if x > 0 else 1), ax, y, z
+        elif ay >= az:
+            face, depth, u, v = (2 if y > 0 else 3), ay, z, x
+        else:
+            face, depth, u, v = (4 if z > 0 else 5), az, x, y
+        if depth == 0.0:  # not a direction: keep it, the exact path decides
+            keep[kept] = i
+            kept += 1
+            continue
+        ci = min(max(int(math.floor((u / depth + 1.0) * half)), 0), cells - 1)
+        cj = min(max(int(math.floor((v / depth + 1.0) * half)), 0), cells - 1)
+        if grid[face, ci, cj]:
+            keep[kept] = i
+            kept += 1
+    return keep[:kept]
