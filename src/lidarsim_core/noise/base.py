@@ -77,9 +77,9 @@ class GaussianRayRotation:
 
     ``sigma_rad == 0``: the model leaves rays alone. Otherwise it turns each ray by two
     angles ``ndtri(u1)·σ`` and ``ndtri(u2)·σ``, where ``u1, u2`` are the first two uniforms
-    of ``ctx.uniforms(ray_index, 2)``: the seed paper's angular error. Knowing this, the
-    pipeline bounds how far a pulse can turn from the uniforms alone
-    (:mod:`lidarsim_core.cull`).
+    of ``ctx.uniforms(ray_index, 2)``: the seed paper's angular error. Every such draw is
+    within :data:`lidarsim_core.rng.MAX_ABS_NORMAL` σ, so the pipeline knows how far a pulse
+    can turn and skips those that cannot reach a target (:mod:`lidarsim_core.cull`).
     """
 
     sigma_rad: float
