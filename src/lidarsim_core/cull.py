@@ -134,8 +134,9 @@ class PulseCuller:
         from .kernels.cull import direction_grid
 
         key = b"".join(np.ascontiguousarray(a).tobytes() for a in (*rotations, *origins, *grows))
-        if key in self._grids:
-            return self._grids[key]
+        with _grids_lock:
+            if key in self._grids:
+                return self._grids[key]
         corners = []
         for rotation, origin, grow, (lo, hi, child) in zip(rotations, origins, grows, trees):
             leaf = child < 0
@@ -145,12 +146,14 @@ class PulseCuller:
             body = np.where(pick[None], high[:, None, :], low[:, None, :])
             corners.append((body - origin[0]) @ rotation[0])
         grid = direction_grid(np.ascontiguousarray(np.concatenate(corners)), GRID_CELLS)
-        if len(self._grids) >= 16:  # poses of a frozen sequence: keep the newest few
-            self._grids.pop(next(iter(self._grids)))
-        self._grids[key] = grid
+        with _grids_lock:  # pieces on several threads may build the same map: keep one
+            if len(self._grids) >= 16:  # poses of a frozen sequence: keep the newest few
+                self._grids.pop(next(iter(self._grids)))
+            self._grids[key] = grid
         return grid
 
 
+_grids_lock = threading.Lock()
 _trees: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
 _trees_lock = threading.Lock()
 

@@ -4,7 +4,9 @@
 A pulse is kept when its nominal ray, in a target's body frame, meets a leaf of that target's
 box tree with every box grown by ``grow`` (the largest distance by which the flown ray, or any
 of its beam's sub-rays, can stray from the nominal ray before leaving the target's bounding
-box). The slab tests run in float64 with an extra tolerance in ``grow``.
+box). The slab tests run in float64 with an extra tolerance in ``grow``. When one pose holds for
+a whole piece, :func:`direction_grid` projects the grown leaf boxes once onto a cube map of
+directions and :func:`cull_by_grid` looks each pulse up in it instead.
 """
 
 from __future__ import annotations
