@@ -113,3 +113,61 @@ def test_sigterm_stops_a_dataset_run_cleanly(tmp_path):
     assert proc.returncode == code, stderr
     assert [x for x in stderr.splitlines() if x.strip()] == [line]
     assert not list(out.rglob("*.part"))
+
+
+def _surfacing_through_a_kernel(interrupt: KeyboardInterrupt) -> SystemError:
+    """What numba's dispatcher raises when a signal handler fires while it is called."""
+    try:
+        try:
+            raise interrupt
+        except KeyboardInterrupt as exc:
+            raise SystemError("CPUDispatcher(...) returned a result with an exception set") \
+                from exc
+    except SystemError as error:
+        return error
+
+
+def test_an_interrupt_behind_a_kernel_error_is_found():
+    from lidarsim_core.guard import Terminated, interrupt_behind
+
+    term = Terminated()
+    assert interrupt_behind(_surfacing_through_a_kernel(term)) is term
+    assert interrupt_behind(ValueError("unrelated")) is None
+    assert interrupt_behind(None) is None
+
+
+@pytest.mark.parametrize("interrupt,code,line", [
+    ("Terminated", 143, "error: terminated (SIGTERM); no partial output was kept"),
+    ("KeyboardInterrupt", 130, "error: interrupted; no partial output was kept")])
+def test_cli_reports_an_interrupt_surfacing_through_a_kernel_as_the_interrupt(
+        interrupt, code, line, capsys):
+    from lidarsim_core import cli, guard
+
+    cause = guard.Terminated() if interrupt == "Terminated" else KeyboardInterrupt()
+
+    def body() -> None:
+        raise _surfacing_through_a_kernel(cause)
+
+    import typer
+
+    with pytest.raises(typer.Exit) as info:
+        cli.run_guarded(body)
+    assert info.value.exit_code == code
+    assert capsys.readouterr().err.strip() == line
+
+
+def test_simulation_reraises_an_interrupt_surfacing_through_a_kernel(monkeypatch):
+    from lidarsim_core.demo import demo_scenario
+    from lidarsim_core.guard import Terminated
+    from lidarsim_core.pipeline import Simulation
+
+    sim = Simulation(demo_scenario(duration_s=0.01, detail="coarse", backend="numpy"))
+    term = Terminated()
+
+    def interrupted(*args, **kwargs):
+        raise _surfacing_through_a_kernel(term)
+
+    monkeypatch.setattr(sim, "_process", interrupted)
+    with pytest.raises(Terminated) as info:
+        sim.run_frame(0)
+    assert info.value is term

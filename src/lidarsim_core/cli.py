@@ -68,10 +68,16 @@ def run_guarded(func: Callable[[], Any]) -> Any:
     any other failure, 130 after Ctrl-C (SIGINT), 143 after SIGTERM.
     """
     from .errors import PluginError
-    from .guard import SIGTERM_EXIT_CODE, Terminated
+    from .guard import SIGTERM_EXIT_CODE, Terminated, interrupt_behind
 
     try:
-        return func()
+        try:
+            return func()
+        except Exception as exc:  # an interrupt surfacing through a compiled kernel
+            interrupt = interrupt_behind(exc)
+            if interrupt is None:
+                raise
+            raise interrupt from None
     except typer.Exit:
         raise
     except (UserInputError, PluginError) as exc:

@@ -55,6 +55,22 @@ def sigterm_as_interrupt() -> Iterator[None]:
         signal.signal(signal.SIGTERM, previous)
 
 
+def interrupt_behind(exc: BaseException | None) -> KeyboardInterrupt | None:
+    """The Ctrl-C or ``SIGTERM`` (:class:`Terminated`) behind ``exc``, if any.
+
+    A signal handled while a compiled (numba) kernel is being called can surface as a
+    ``SystemError`` ("returned a result with an exception set") whose cause is the
+    interrupt; callers use this to report it as the interrupt it is.
+    """
+    seen: set[int] = set()
+    while exc is not None and id(exc) not in seen:
+        if isinstance(exc, KeyboardInterrupt):
+            return exc
+        seen.add(id(exc))
+        exc = exc.__cause__ or exc.__context__
+    return None
+
+
 # ---- plugins failing at run time ---------------------------------------------------------
 #: Methods of each component kind that run during a simulation or an export.
 GUARDED_METHODS: dict[str, tuple[str, ...]] = {

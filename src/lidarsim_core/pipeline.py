@@ -42,7 +42,7 @@ from .chunks import ordered_map, piece_size, rotate, split_range, to_body, worke
 from .config_io import validate_model
 from .cull import PulseCuller
 from .datasheet import SensorDatasheet
-from .guard import check_sensor_outside, guard_components
+from .guard import check_sensor_outside, guard_components, interrupt_behind
 from .errors import ConfigError, LidarsimError, PluginError
 from .materials import Material, MaterialTable, material_library, part_materials
 from .mesh import Mesh, load_mesh_file
@@ -284,11 +284,17 @@ class Simulation:
 
         done: list[dict[str, np.ndarray]] = []
         current = 0
-        for (c, _, _), columns in zip(pieces, ordered_map(work, pieces, workers)):
-            if c != current:
-                yield merged(done)
-                done, current = [], c
-            done.append(columns)
+        try:
+            for (c, _, _), columns in zip(pieces, ordered_map(work, pieces, workers)):
+                if c != current:
+                    yield merged(done)
+                    done, current = [], c
+                done.append(columns)
+        except Exception as exc:  # Ctrl-C or SIGTERM while a compiled kernel was called
+            interrupt = interrupt_behind(exc)
+            if interrupt is None:
+                raise
+            raise interrupt from None
         if done:
             yield merged(done)
 
