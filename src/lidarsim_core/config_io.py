@@ -20,6 +20,27 @@ from .errors import ConfigError
 CONFIG_SUFFIXES = (".yaml", ".yml", ".toml", ".json")
 
 
+def read_text_file(path: Path, what: str = "file") -> str:
+    """The UTF-8 text of ``path``; a :class:`ConfigError` naming the file and saying ``what``
+    it is when it is missing or unreadable."""
+    try:
+        return path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise ConfigError(f"{what} not found", source=path) from None
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ConfigError(f"cannot read {what}: {exc}", source=path) from None
+
+
+def read_json_file(path: Path, what: str) -> Any:
+    """The JSON value in ``path``, with the errors of :func:`read_text_file`, and one for
+    malformed JSON."""
+    text = read_text_file(path, what)
+    try:
+        return json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ConfigError(f"cannot read {what}: {exc}", source=path) from None
+
+
 def read_config_file(path: str | Path) -> dict[str, Any]:
     """Parse a YAML/TOML/JSON file into a mapping.
 
@@ -33,13 +54,7 @@ def read_config_file(path: str | Path) -> dict[str, Any]:
     if suffix not in CONFIG_SUFFIXES:
         raise ConfigError(f"unsupported configuration format '{suffix or '(none)'}'; use one of "
                           f"{', '.join(CONFIG_SUFFIXES)}", source=path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ConfigError("file not found", source=path) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"cannot read file: {exc}", source=path) from None
-    data = parse_config_text(text, suffix, source=path)
+    data = parse_config_text(read_text_file(path), suffix, source=path)
     return data
 
 

@@ -142,8 +142,7 @@ class PulseCuller:
             leaf = child < 0
             low, high = lo[leaf] - grow[0], hi[leaf] + grow[0]
             # the eight corners of each grown leaf box, body frame -> sensor frame
-            pick = np.array([[i & 1, (i >> 1) & 1, (i >> 2) & 1] for i in range(8)], dtype=bool)
-            body = np.where(pick[None], high[:, None, :], low[:, None, :])
+            body = np.where(_CORNERS[None], high[:, None, :], low[:, None, :])
             corners.append((body - origin[0]) @ rotation[0])
         grid = direction_grid(np.ascontiguousarray(np.concatenate(corners)), GRID_CELLS)
         with _grids_lock:  # pieces on several threads may build the same map: keep one
@@ -154,6 +153,8 @@ class PulseCuller:
 
 
 _grids_lock = threading.Lock()
+#: Which corner of a box takes the high end of each axis (8 corners x 3 axes).
+_CORNERS = np.array([[i & 1, (i >> 1) & 1, (i >> 2) & 1] for i in range(8)], dtype=bool)
 _trees: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
 _trees_lock = threading.Lock()
 

@@ -47,6 +47,7 @@ from typing import TYPE_CHECKING, Any, Sequence
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from .config_io import read_json_file
 from .errors import ConfigError, OutputError
 from .poses import Poses
 
@@ -186,12 +187,7 @@ def read_ground_truth(path: str | Path) -> dict[str, Any]:
         If the file is missing, not JSON, or not a lidarsim pose file.
     """
     path = Path(path)
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ConfigError("pose file not found", source=path) from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ConfigError(f"cannot read pose file: {exc}", source=path) from None
+    data = read_json_file(path, "pose file")
     if not isinstance(data, dict) or data.get("format") != FORMAT_NAME:
         raise ConfigError(f"not a {FORMAT_NAME} JSON file", source=path, field="format")
     return data

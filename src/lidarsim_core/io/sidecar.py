@@ -21,6 +21,7 @@ import json
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from ..config_io import read_json_file
 from ..errors import ConfigError
 
 if TYPE_CHECKING:
@@ -77,12 +78,7 @@ def read_sidecar(path: str | Path) -> dict[str, Any]:
     """
     path = Path(path)
     target = path if path.name.endswith(".json") else sidecar_path(path)
-    try:
-        data = json.loads(target.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ConfigError("sidecar file not found", source=target) from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise ConfigError(f"cannot read sidecar: {exc}", source=target) from None
+    data = read_json_file(target, "sidecar file")
     if not isinstance(data, dict) or data.get("format") != SIDECAR_FORMAT:
         raise ConfigError(f"not a {SIDECAR_FORMAT} sidecar", source=target, field="format")
     return data

@@ -37,7 +37,7 @@ from pydantic import ConfigDict, Field, model_validator
 from scipy.spatial.transform import Rotation
 
 from ..components import ComponentOptions
-from ..config_io import read_config_file, validate_model
+from ..config_io import read_config_file, read_text_file, validate_model
 from ..errors import ConfigError
 from ..hookspecs import hookimpl
 from ..poses import PoseConfig, Poses
@@ -102,12 +102,7 @@ def _numbers(cells: dict[str, str], cols: tuple[str, ...], path: Path, line: int
 
 def _read_csv(path: Path) -> tuple[list[Keyframe], list[int]]:
     """Keyframes of a CSV file and the line number of each."""
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ConfigError("keyframe file not found", source=path) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"cannot read keyframe file: {exc}", source=path) from None
+    text = read_text_file(path, "keyframe file")
     reader = csv.DictReader(io.StringIO(text, newline=""))
     header = [h.strip() for h in (reader.fieldnames or [])]
     missing = [c for c in _CSV_POSITION if c not in header]
