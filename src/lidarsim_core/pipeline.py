@@ -11,6 +11,9 @@ For every chunk of rays (vectorised throughout):
    ``sensor.beam`` every pulse becomes K sub-rays over its divergence footprint, all cast in
    the same batch (:mod:`lidarsim_core.beam`);
 4. the backend finds the first hit on every target; the closest target wins;
+Steps 5-8 are the measurement stages (:mod:`lidarsim_core.stages`, one module each, run in
+order on a :class:`~lidarsim_core.stages.Piece`); :class:`Simulation` only coordinates:
+
 5. hits become candidate returns: one per pulse, or the pulse's sub-ray hits grouped by
    range (:mod:`lidarsim_core.returns`), each with a signal and an intensity from the parts'
    materials (:mod:`lidarsim_core.materials`, :mod:`lidarsim_core.radiometry`); false-alarm
@@ -46,21 +49,20 @@ from .guard import check_sensor_outside, guard_components, interrupt_behind
 from .errors import ConfigError, LidarsimError, PluginError
 from .materials import Material, MaterialTable, material_library, part_materials
 from .mesh import Mesh, load_mesh_file
-from .noise.base import NoiseContext, NoiseModel, Returns, perpendicular_basis
+from .noise.base import NoiseContext, NoiseModel, perpendicular_basis
 from .noise.outliers import SpuriousReturnModel
-from .noise.streams import for_return
 from .patterns.base import RayBatch, ScanPattern
-from .patterns.geometry import az_el_from_directions
 from .plugins import get_registry
 from .pointcloud import FrameInfo, PointCloud
 from .poses import Poses
 from .radiometry import LinkBudget, detection_range_limit, link_budget
 from .registry import Registry
-from .returns import Candidates, ReturnsConfig, SubRayHits, group_sub_rays, select_returns
-from .rng import ray_uniforms
+from .returns import ReturnsConfig, SubRayHits
 from .scenario import NamedComponent, Scenario, load_scenario, scenario_from_dict
 from .trajectories.base import Trajectory
-from .vec3 import rowdot, scale_rows
+from .stages import (CandidateStage, DetectionStage, NoiseStage, Piece, SceneRays,
+                     SelectionStage, Stage, record_columns)
+from .vec3 import rowdot
 
 DEFAULT_NOISE_CHAIN = ("angular", "range")
 #: Most rays per unit of work handed to a pipeline thread (a chunk is split into such pieces,
@@ -68,8 +70,6 @@ DEFAULT_NOISE_CHAIN = ("angular", "range")
 PIECE_RAYS = 65536
 #: Part label of false alarms (appended to the scene's parts when a model makes them).
 FALSE_ALARM_PART = "noise/false_alarm"
-#: Random stream of the detection draws.
-DETECTION_STREAM = "detection"
 
 
 @dataclass
@@ -201,6 +201,11 @@ class Simulation:
                                   source=src, field="sensor.returns.range_resolution_m")
             self.sub_rays = sub_rays_for(beam, divergence)
         self.range_resolution_m = resolution
+        #: Whether the cast keeps the hit normals (stages that cast secondary rays need them).
+        self.keep_normals = False
+        #: The measurement stages, run in order on every piece (:mod:`lidarsim_core.stages`).
+        self.stages: list[Stage] = [CandidateStage(self), DetectionStage(self),
+                                    SelectionStage(self), NoiseStage(self)]
 
     @property
     def rays_per_pulse(self) -> int:
@@ -326,10 +331,10 @@ class Simulation:
 
     def _pulse_frames(self, batch: RayBatch, contexts: list[NoiseContext], t_frame: float
                       ) -> tuple[np.ndarray, list[np.ndarray],
-                                 list[tuple[np.ndarray, list[np.ndarray]]]]:
+                                 list[tuple[np.ndarray, list[np.ndarray]]], SceneRays]:
         """Directions flown (sensor frame), the beam's cross axes (u, v; sensor frame; empty
-        without divergence) and, per target, the sensor origin and those vectors in its body
-        frame."""
+        without divergence), per target the sensor origin and those vectors in its body frame,
+        and the scene-frame geometry (for stages that cast secondary rays)."""
         flown = batch.direction
         for model, ctx in zip(self.noise, contexts):
             flown = model.perturb_rays(flown, batch.index, ctx)
@@ -338,24 +343,26 @@ class Simulation:
         origin_scene = sensor_poses.position
         scene = [rotate(sensor_poses, vec) for vec in (flown, *axes)]
         bodies = []
+        target_poses = []
         for target in self.targets:
             poses = self._chunk_poses(target.trajectory, batch.t, t_frame)
+            target_poses.append(poses)
             bodies.append((to_body(poses, origin_scene),
                            [rotate(poses, vec, inverse=True) for vec in scene]))
-        return flown, axes, bodies
+        return flown, axes, bodies, SceneRays(origin_scene, scene, sensor_poses, target_poses)
 
     def _body_rays(self, batch: RayBatch, contexts: list[NoiseContext], t_frame: float
                    ) -> tuple[np.ndarray, list[tuple[np.ndarray, np.ndarray]]]:
         """Directions flown (sensor frame) and, per target, the rays in its body frame (one
         ray per pulse: the pulses' central rays)."""
-        flown, _, bodies = self._pulse_frames(batch, contexts, t_frame)
+        flown, _, bodies, _ = self._pulse_frames(batch, contexts, t_frame)
         return flown, [(np.broadcast_to(origin, vecs[0].shape), vecs[0])
                        for origin, vecs in bodies]
 
-    def _cast(self, batch: RayBatch, contexts: list[NoiseContext], t_frame: float
-              ) -> tuple[np.ndarray, list[np.ndarray], SubRayHits]:
+    def _cast(self, batch: RayBatch, contexts: list[NoiseContext], t_frame: float,
+              frame: int = 0) -> Piece:
         """Cast every (sub-)ray of the pulses on every target; the closest target wins."""
-        flown, axes, bodies = self._pulse_frames(batch, contexts, t_frame)
+        flown, axes, bodies, scene = self._pulse_frames(batch, contexts, t_frame)
         k = self.rays_per_pulse
         n = len(batch) * k
         best = np.full(n, np.inf)
@@ -363,6 +370,7 @@ class Simulation:
         face = np.full(n, -1, dtype=np.int64)
         part = np.full(n, -1, dtype=np.int16)
         cos_inc = np.zeros(n)
+        normal = np.zeros((n, 3)) if self.keep_normals else None
         for j, (target, (origin, vecs)) in enumerate(zip(self.targets, bodies)):
             if self.sub_rays is None:
                 d_body = vecs[0]
@@ -378,151 +386,18 @@ class Simulation:
             face[closer] = hit_face
             part[closer] = target.mesh.face_part[hit_face] + target.part_offset
             cos_inc[closer] = np.abs(rowdot(hits.normal[closer], d_body[closer]))
-        return flown, axes, SubRayHits(best, target_id, face, part, cos_inc)
-
-    def _candidates(self, batch: RayBatch, hits: SubRayHits,
-                    contexts: list[NoiseContext]) -> Candidates:
-        """Candidate returns of the pulses, sorted by (pulse, range)."""
-        link = self.link
-        exponent = link.exponent if link is not None else 2.0
-        if self.sub_rays is None:
-            idx = np.flatnonzero(hits.target >= 0)
-            rng = hits.distance[idx]
-            part, cos_inc = hits.part[idx], hits.cos_incidence[idx]
-            rho = self.materials.effective(part, cos_inc)
-            power = rho / rng ** exponent
-            zeros = np.zeros(len(idx), dtype=np.int64)
-            cand = Candidates(idx, zeros, rng, rng, zeros,
-                              link.constant * power if link is not None else power, rho,
-                              hits.target[idx], hits.face[idx], part, cos_inc)
-        else:
-            k = self.sub_rays.count
-            pulse, rank, rng, flat, power, rng_true = group_sub_rays(
-                hits, k, self.sub_rays.weights, self.materials.effective, exponent,
-                self.range_resolution_m)
-            cand = Candidates(pulse, rank, rng, rng_true, flat % k,
-                              link.constant * power if link is not None else power,
-                              power * rng ** exponent, hits.target[flat], hits.face[flat],
-                              hits.part[flat], hits.cos_incidence[flat])
-        extra = [self._false_alarms(batch, model, contexts[i]) for i, model in self.spurious]
-        extra = [c for c in extra if len(c)]
-        return Candidates.concatenate([cand, *extra]) if extra else cand
-
-    def _false_alarms(self, batch: RayBatch, model: SpuriousReturnModel,
-                      ctx: NoiseContext) -> Candidates:
-        rng = model.spurious_ranges(batch.index, ctx, self.sensor.range_min_m, self.range_limit)
-        pulse = np.flatnonzero(np.isfinite(rng))
-        rng = rng[pulse]
-        m = len(pulse)
-        # a false alarm just crosses the threshold: S = 1 (0 without a calibrated budget)
-        signal = np.ones(m) if self.link is not None else np.zeros(m)
-        intensity = (self.link.apparent_reflectivity(signal, rng) if self.link is not None
-                     else np.zeros(m))
-        return Candidates(pulse, np.full(m, -1, dtype=np.int64), rng, np.full(m, np.nan),
-                          np.zeros(m, dtype=np.int64), signal, intensity,
-                          np.full(m, -1, dtype=np.int16), np.full(m, -1, dtype=np.int64),
-                          np.full(m, self.false_alarm_part, dtype=np.int16), np.full(m, np.nan))
-
-    def _detected(self, batch: RayBatch, cand: Candidates, frame: int) -> np.ndarray:
-        """Which candidates the sensor detects: range gate, then the link budget's draw."""
-        sheet = self.sensor
-        detected = (cand.range >= sheet.range_min_m) & (cand.range <= self.range_limit)
-        if self.link is None or not len(cand):
-            return detected
-        real = cand.group >= 0
-        draws = ray_uniforms(self.scenario.seed, frame, DETECTION_STREAM,
-                             batch.index[cand.pulse], self.rays_per_pulse)
-        draw = draws[np.arange(len(cand)), np.maximum(cand.group, 0)]
-        return detected & (~real | (draw < self.link.detection_probability(cand.signal)))
-
-    def _reported(self, cand: Candidates, detected: np.ndarray
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Rows of ``cand`` written to the record (the return mode's picks, plus the
-        undetected ones when kept), whether each was detected, and their return numbers and
-        returns per pulse (0 for undetected ones)."""
-        det = np.flatnonzero(detected)
-        pulse = cand.pulse[det]
-        if len(det) > 1 and bool((pulse[1:] == pulse[:-1]).any()):
-            keep, number, count = select_returns(pulse, cand.signal[det], self.return_mode,
-                                                 dual=self.dual_return,
-                                                 max_returns=self.max_returns)
-            det, number, count = det[keep], number[keep], count[keep]
-        else:  # at most one detected return per pulse: every mode reports it
-            number = count = np.ones(len(det), dtype=np.uint8)
-        if not self.keep_undetected:
-            return det, np.ones(len(det), dtype=bool), number, count
-        rows = np.sort(np.concatenate([det, np.flatnonzero(~detected)]))
-        where = np.searchsorted(rows, det)
-        number_all = np.zeros(len(rows), dtype=np.uint8)
-        count_all = np.zeros(len(rows), dtype=np.uint8)
-        number_all[where], count_all[where] = number, count
-        return rows, detected[rows], number_all, count_all
+            if normal is not None:
+                normal[closer] = hits.normal[closer]
+        hits = SubRayHits(best, target_id, face, part, cos_inc, normal)
+        return Piece(batch, frame, contexts, flown, axes, hits, scene)
 
     def _process(self, batch: RayBatch, contexts: list[NoiseContext], t_frame: float,
                  frame: int = 0) -> dict[str, np.ndarray]:
-        flown, axes, hits = self._cast(batch, contexts, t_frame)
-        cand = self._candidates(batch, hits, contexts)
-        rows, flag, number, count = self._reported(cand, self._detected(batch, cand, frame))
-        pulse = cand.pulse[rows]
-        direction = flown[pulse]
-        range_measured = cand.range[rows]
-        direction_measured = direction
-        reported = np.flatnonzero(flag)
-        if len(reported) == len(rows):
-            range_measured, direction_measured = self._noise(
-                batch, contexts, pulse, direction, cand.range_true[rows], range_measured, number)
-        else:  # noise on the reported returns only; kept undetected ones stay noiseless
-            range_measured, direction_measured = range_measured.copy(), direction.copy()
-            r_meas, d_meas = self._noise(batch, contexts, pulse[reported], direction[reported],
-                                         cand.range_true[rows][reported],
-                                         range_measured[reported], number[reported])
-            range_measured[reported], direction_measured[reported] = r_meas, d_meas
-        measured = scale_rows(direction_measured, range_measured)
-        range_true = cand.range_true[rows]
-        if self.sub_rays is None:
-            true = scale_rows(direction, range_true)
-        else:  # the strongest sub-ray's own surface point
-            true = scale_rows(self.sub_rays.direction_of(cand.sub_ray[rows], direction,
-                                                         axes[0][pulse], axes[1][pulse]),
-                              range_true)
-        azimuth, elevation = az_el_from_directions(batch.direction[pulse])
-        return {
-            "x": measured[:, 0], "y": measured[:, 1], "z": measured[:, 2],
-            "x_true": true[:, 0], "y_true": true[:, 1], "z_true": true[:, 2],
-            "range": range_measured, "range_true": range_true,
-            "azimuth": azimuth, "elevation": elevation, "timestamp": batch.t[pulse],
-            "return_number": number, "number_of_returns": count,
-            "channel": batch.channel[pulse], "ray_index": batch.index[pulse],
-            "face_index": cand.face[rows], "target": cand.target[rows], "part": cand.part[rows],
-            "incidence_angle": np.arccos(np.clip(cand.cos_incidence[rows], 0.0, 1.0)),
-            "intensity": cand.intensity[rows].astype(np.float32),
-            "detected": flag.astype(np.uint8),
-        }
-
-    def _noise(self, batch: RayBatch, contexts: list[NoiseContext], pulse: np.ndarray,
-               direction: np.ndarray, range_true: np.ndarray, range_measured: np.ndarray,
-               number: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Return-stage noise of reported returns; return r > 1 of a pulse draws from its own
-        streams (:func:`~lidarsim_core.noise.streams.for_return`)."""
-        if len(number) == 0 or number.min() == number.max():  # the usual case: one value
-            numbers = number[:1]
-        else:
-            numbers = np.unique(number)
-        if len(numbers) <= 1:
-            r = int(numbers[0]) if len(numbers) else 1
-            returns = Returns(batch.index[pulse], direction, range_true, range_measured.copy(),
-                              direction)
-            for model, ctx in zip(self.noise, contexts):
-                returns = model.perturb_returns(returns, for_return(ctx, r))
-            return returns.range_measured, returns.direction_measured
-        out_range = np.empty(len(pulse))
-        out_direction = np.empty((len(pulse), 3))
-        for r in numbers:
-            sel = np.flatnonzero(number == r)
-            out_range[sel], out_direction[sel] = self._noise(
-                batch, contexts, pulse[sel], direction[sel], range_true[sel],
-                range_measured[sel], number[sel])
-        return out_range, out_direction
+        """Cast a piece of pulses, run the measurement stages in order, record the points."""
+        piece = self._cast(batch, contexts, t_frame, frame)
+        for stage in self.stages:
+            stage.run(piece)
+        return record_columns(self, piece)
 
     def frame_info(self, frame: int) -> FrameInfo:
         """Metadata of ``frame``: timing, poses at start and end, provenance."""

@@ -28,7 +28,7 @@ how many its pulse reported (``number_of_returns``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Literal
 
 import numpy as np
@@ -78,6 +78,12 @@ class Candidates:
         (M,) apparent reflectivity (see :mod:`lidarsim_core.radiometry`).
     target, face, part, cos_incidence
         (M,) ground truth of the strongest sub-ray's hit.
+    bounces
+        (M,) uint8 specular bounces before the surface seen (0: direct); None when multipath
+        is off (all direct).
+    true_point
+        (M, 3) for returns with bounces, the true surface point the light came from (sensor
+        frame); NaN for direct returns; None when multipath is off.
     """
 
     pulse: np.ndarray
@@ -91,6 +97,8 @@ class Candidates:
     face: np.ndarray
     part: np.ndarray
     cos_incidence: np.ndarray
+    bounces: np.ndarray | None = None
+    true_point: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.pulse)
@@ -98,9 +106,14 @@ class Candidates:
     @classmethod
     def concatenate(cls, parts: list["Candidates"]) -> "Candidates":
         """Join candidates and sort them by (pulse, range)."""
-        joined = {k: np.concatenate([getattr(p, k) for p in parts]) for k in parts[0].__dict__}
+        if any(p.bounces is not None for p in parts):  # multipath: fill the direct ones in
+            parts = [p if p.bounces is not None else replace(
+                p, bounces=np.zeros(len(p), dtype=np.uint8),
+                true_point=np.full((len(p), 3), np.nan)) for p in parts]
+        joined = {k: np.concatenate([getattr(p, k) for p in parts]) if getattr(parts[0], k)
+                  is not None else None for k in parts[0].__dict__}
         order = np.lexsort((joined["range"], joined["pulse"]))
-        return cls(**{k: v[order] for k, v in joined.items()})
+        return cls(**{k: None if v is None else v[order] for k, v in joined.items()})
 
 
 @dataclass(frozen=True)
@@ -112,10 +125,13 @@ class SubRayHits:
     face: np.ndarray
     part: np.ndarray
     cos_incidence: np.ndarray
+    #: (N·K, 3) unit normals of the hit faces in the hit target's body frame (kept only when a
+    #: stage needs them, e.g. multipath; None otherwise).
+    normal: np.ndarray | None = None
 
 
 def group_sub_rays(hits: SubRayHits, count: int, weights: np.ndarray, rho_eff_of,
-                   exponent: float, resolution_m: float
+                   exponent: float, resolution_m: float, gain: np.ndarray | None = None
                    ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray,
                               np.ndarray]:
     """Group each pulse's sub-ray hits into returns (see the module docstring).
@@ -132,6 +148,8 @@ def group_sub_rays(hits: SubRayHits, count: int, weights: np.ndarray, rho_eff_of
         n of the range law ``1/R^n``.
     resolution_m
         Range resolution ΔR.
+    gain
+        (N·K,) optional factor on each sub-ray's power (multipath: the mirrors' coupling).
 
     Returns
     -------
@@ -159,6 +177,8 @@ def group_sub_rays(hits: SubRayHits, count: int, weights: np.ndarray, rho_eff_of
     row = np.broadcast_to(np.arange(len(rows))[:, None], valid.shape)[valid]
     flat = rows[row] * count + k
     power = weights[k] * rho_eff_of(hits.part[flat], hits.cos_incidence[flat]) / r ** exponent
+    if gain is not None:
+        power = power * gain[flat]
     starts = np.flatnonzero(first)
     gid = np.cumsum(first) - 1
     total = np.add.reduceat(power, starts)
