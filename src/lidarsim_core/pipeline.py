@@ -31,6 +31,7 @@ every hit inside the range gate, one per pulse: the seed paper's model, to the b
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterator
@@ -60,6 +61,7 @@ from .registry import Registry
 from .returns import ReturnsConfig, SubRayHits
 from .scenario import NamedComponent, Scenario, load_scenario, scenario_from_dict
 from .trajectories.base import Trajectory
+from .stages.bounces import BounceStage
 from .stages import (CandidateStage, DetectionStage, NoiseStage, Piece, SceneRays,
                      SelectionStage, Stage, record_columns)
 from .vec3 import rowdot
@@ -204,8 +206,16 @@ class Simulation:
         #: Whether the cast keeps the hit normals (stages that cast secondary rays need them).
         self.keep_normals = False
         #: The measurement stages, run in order on every piece (:mod:`lidarsim_core.stages`).
-        self.stages: list[Stage] = [CandidateStage(self), DetectionStage(self),
-                                    SelectionStage(self), NoiseStage(self)]
+        self.stages: list[Stage] = [CandidateStage(self)]
+        multipath = scenario.sensor.multipath
+        if multipath is not None:
+            if self.link is None:
+                raise ConfigError("multipath ghosts are detected by the link budget; add "
+                                  "'detection: {}' to the sensor", source=src,
+                                  field="sensor.multipath")
+            self.keep_normals = True
+            self.stages.append(BounceStage(self, multipath))
+        self.stages += [DetectionStage(self), SelectionStage(self), NoiseStage(self)]
 
     @property
     def rays_per_pulse(self) -> int:
@@ -432,6 +442,12 @@ class Simulation:
         if self.sub_rays is not None:
             info["beam"] = {"sub_rays": self.sub_rays.count,
                             "range_resolution_m": self.range_resolution_m}
+        multipath = self.scenario.sensor.multipath
+        if multipath is not None:
+            bounce = next(s for s in self.stages if isinstance(s, BounceStage))
+            info["multipath"] = {"max_bounces": multipath.max_bounces,
+                                 "acceptance_deg": math.degrees(bounce.acceptance_rad),
+                                 "min_coupling": multipath.min_coupling}
         if info or self.spurious:
             info["return_mode"] = self.return_mode
             if self.return_mode == "dual":

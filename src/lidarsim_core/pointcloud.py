@@ -26,6 +26,14 @@ detected               u1       1: reported by the sensor; 0: missed by the dete
                                 kept only with ``sensor.detection.keep_undetected``
 =====================  =======  ==============================================================
 
+Optional columns, present only when the stage that writes them is on:
+
+=====================  =======  ==============================================================
+bounces                u1       specular bounces before the surface seen (0: direct return;
+                                b > 0: a multipath ghost, whose ``x_true``... is the true
+                                surface point the light came from; ``sensor.multipath``)
+=====================  =======  ==============================================================
+
 False alarms (noise model ``false_alarms``) have target -1, face -1, the scene's last part
 (``<scene>/false_alarm``) and NaN ground truth (``x_true``..., ``range_true``,
 ``incidence_angle``). Kept undetected returns have ``return_number`` and
@@ -151,8 +159,12 @@ class PointCloud:
         """Join per-chunk column dictionaries into one cloud."""
         if not parts:
             return cls.empty(frame)
-        return cls({k: np.concatenate([p[k] for p in parts]).astype(v, copy=False)
-                    for k, v in POINT_FIELDS.items()}, frame)
+        columns = {k: np.concatenate([p[k] for p in parts]).astype(v, copy=False)
+                   for k, v in POINT_FIELDS.items()}
+        # optional columns of switched-on stages (e.g. multipath's ``bounces``)
+        columns.update({k: np.concatenate([p[k] for p in parts]) for k in parts[0]
+                        if k not in POINT_FIELDS and all(k in p for p in parts)})
+        return cls(columns, frame)
 
     def metadata_json(self) -> str:
         """The frame metadata as a compact JSON string."""

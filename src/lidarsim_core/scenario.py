@@ -34,6 +34,7 @@ from .config_io import read_config_file, validate_model
 from .poses import PoseConfig
 from .radiometry import DetectionConfig
 from .returns import ReturnsConfig
+from .stages.bounces import MultipathConfig
 
 
 class _Strict(BaseModel):
@@ -94,6 +95,9 @@ class SensorConfig(_Posed):
                           "model).")
     returns: ReturnsConfig | None = Field(
         None, description="Return formation and mode; omitted: the datasheet's.")
+    multipath: MultipathConfig | None = Field(
+        None, description="Specular bounces and their ghost returns (needs detection); "
+                          "omitted: the light stops at the first surface.")
 
 
 class MeshConfig(_Strict):
@@ -173,7 +177,7 @@ class ScanConfig(_Strict):
 
 
 #: Sensor fields of the measurement model that are absent (None) in the seed paper's model.
-_REALISM_SENSOR_FIELDS = ("beam", "detection", "returns")
+_REALISM_SENSOR_FIELDS = ("beam", "detection", "returns", "multipath")
 
 
 class Scenario(_Strict):
