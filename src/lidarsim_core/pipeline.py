@@ -62,6 +62,7 @@ from .returns import ReturnsConfig, SubRayHits
 from .scenario import NamedComponent, Scenario, load_scenario, scenario_from_dict
 from .trajectories.base import Trajectory
 from .stages.bounces import BounceStage
+from .stages.receiver import ReceiverStage
 from .stages import (CandidateStage, DetectionStage, NoiseStage, Piece, SceneRays,
                      SelectionStage, Stage, record_columns)
 from .vec3 import rowdot
@@ -215,7 +216,10 @@ class Simulation:
                                   field="sensor.multipath")
             self.keep_normals = True
             self.stages.append(BounceStage(self, multipath))
-        self.stages += [DetectionStage(self), SelectionStage(self), NoiseStage(self)]
+        self.stages.append(DetectionStage(self))
+        if scenario.sensor.receiver is not None:
+            self.stages.append(ReceiverStage(self, scenario.sensor.receiver))
+        self.stages += [SelectionStage(self), NoiseStage(self)]
 
     @property
     def rays_per_pulse(self) -> int:
@@ -448,6 +452,11 @@ class Simulation:
             info["multipath"] = {"max_bounces": multipath.max_bounces,
                                  "acceptance_deg": math.degrees(bounce.acceptance_rad),
                                  "min_coupling": multipath.min_coupling}
+        receiver = self.scenario.sensor.receiver
+        if receiver is not None:
+            stage = next(s for s in self.stages if isinstance(s, ReceiverStage))
+            info["receiver"] = {"saturation_signal": receiver.saturation_signal,
+                                "range_walk_sigma_m": stage.sigma_m}
         if info or self.spurious:
             info["return_mode"] = self.return_mode
             if self.return_mode == "dual":

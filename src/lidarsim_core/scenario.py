@@ -35,6 +35,7 @@ from .poses import PoseConfig
 from .radiometry import DetectionConfig
 from .returns import ReturnsConfig
 from .stages.bounces import MultipathConfig
+from .stages.receiver import ReceiverConfig
 
 
 class _Strict(BaseModel):
@@ -98,6 +99,9 @@ class SensorConfig(_Posed):
     multipath: MultipathConfig | None = Field(
         None, description="Specular bounces and their ghost returns (needs detection); "
                           "omitted: the light stops at the first surface.")
+    receiver: ReceiverConfig | None = Field(
+        None, description="Receiver dynamic range: saturation and range walk (needs "
+                          "detection); omitted: an unlimited linear receiver.")
 
 
 class MeshConfig(_Strict):
@@ -177,7 +181,7 @@ class ScanConfig(_Strict):
 
 
 #: Sensor fields of the measurement model that are absent (None) in the seed paper's model.
-_REALISM_SENSOR_FIELDS = ("beam", "detection", "returns", "multipath")
+_REALISM_SENSOR_FIELDS = ("beam", "detection", "returns", "multipath", "receiver")
 
 
 class Scenario(_Strict):

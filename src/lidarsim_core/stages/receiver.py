@@ -1,0 +1,107 @@
+"""Receiver dynamic range: saturation and range walk (docs/realism.md, "Receiver dynamic
+range").
+
+**Saturation.** The receiver's output clips at a signal ``S_sat`` (threshold units of the
+calibrated link budget): a detected return's signal becomes ``min(S, S_sat)`` and its
+intensity (apparent reflectivity, ``S R^n / C``) is clipped accordingly, at
+``S_sat R^n / C``: close retro-reflectors and glints all read the same.
+
+**Range walk.** A leading-edge discriminator fires when the echo crosses the threshold. For a
+Gaussian pulse of RMS length σ_R (in range units), an echo of peak S (threshold units) crosses
+``σ_R √(2 ln S)`` before its peak. Sensors correct this walk from the measured amplitude; once
+the amplitude saturates they can no longer, and a return of true signal S > S_sat is reported
+early by
+
+.. math::  ΔR(S) = −σ_R \\left(\\sqrt{2 \\ln S} − \\sqrt{2 \\ln S_\\mathrm{sat}}\\right),
+           \\quad S > S_\\mathrm{sat}\\ (0 \\text{ below})
+
+σ_R defaults to ``range_resolution_m / 2.3548`` (the resolution ≈ c τ/2 read as the pulse's
+FWHM in range units).
+
+Reads and writes ``piece.cand`` (signal, intensity, range of detected candidates; re-sorted by
+(pulse, range) when the walk reorders a pulse's returns).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+from pydantic import BaseModel, ConfigDict, Field
+
+from ..errors import ConfigError
+from ..returns import Candidates
+from .base import Piece
+
+if TYPE_CHECKING:
+    from ..pipeline import Simulation
+
+#: FWHM of a Gaussian over its σ: 2 √(2 ln 2).
+FWHM_PER_SIGMA = 2.0 * math.sqrt(2.0 * math.log(2.0))
+
+
+class ReceiverConfig(BaseModel):
+    """The receiver's dynamic range (off unless this block is given; needs detection)."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+    saturation_signal: float = Field(
+        gt=1, description="Signal (in units of the detection threshold) at which the "
+                          "receiver saturates: signal and intensity clip there.")
+    range_walk: bool = Field(False, description="Bias saturated returns early by the "
+                                                "uncorrected leading-edge walk ΔR(S).")
+    pulse_sigma_m: float | None = Field(
+        None, gt=0, description="RMS length σ_R of the pulse in range units (m); default: "
+                                "range_resolution_m / 2.3548.")
+
+
+def range_walk(signal: np.ndarray, saturation: float, sigma_m: float) -> np.ndarray:
+    """ΔR(S) = −σ_R (√(2 ln S) − √(2 ln S_sat)) for S > S_sat, else 0 (m)."""
+    s = np.maximum(np.asarray(signal, dtype=np.float64), saturation)
+    return -sigma_m * (np.sqrt(2.0 * np.log(s)) - math.sqrt(2.0 * math.log(saturation)))
+
+
+class ReceiverStage:
+    """Saturation and range walk of detected returns (see the module docstring)."""
+
+    name = "receiver"
+
+    def __init__(self, sim: "Simulation", config: ReceiverConfig) -> None:
+        src = sim.scenario.source
+        if sim.link is None:
+            raise ConfigError("the receiver's saturation is a signal level of the link "
+                              "budget; add 'detection: {}' to the sensor", source=src,
+                              field="sensor.receiver")
+        self.link = sim.link
+        self.saturation = config.saturation_signal
+        self.sigma_m: float | None = None
+        if config.range_walk:
+            sigma = config.pulse_sigma_m
+            if sigma is None:
+                if sim.range_resolution_m is None:
+                    raise ConfigError(f"datasheet '{sim.sensor.name}' gives no "
+                                      "range_resolution_m to derive the pulse length from; "
+                                      "give pulse_sigma_m", source=src,
+                                      field="sensor.receiver.pulse_sigma_m")
+                sigma = sim.range_resolution_m / FWHM_PER_SIGMA
+            self.sigma_m = sigma
+
+    def run(self, piece: Piece) -> None:
+        cand = piece.cand
+        hot = np.flatnonzero(piece.detected & (cand.signal > self.saturation))
+        if not len(hot):
+            return
+        signal, intensity, rng = cand.signal.copy(), cand.intensity.copy(), cand.range.copy()
+        if self.sigma_m is not None:
+            rng[hot] += range_walk(signal[hot], self.saturation, self.sigma_m)
+        signal[hot] = self.saturation
+        intensity[hot] = self.link.apparent_reflectivity(signal[hot], rng[hot])
+        cand = Candidates(**{**cand.__dict__, "signal": signal, "intensity": intensity,
+                             "range": rng})
+        order = np.lexsort((cand.range, cand.pulse))
+        if np.any(order != np.arange(len(order))):  # the walk moved a return past another
+            piece.detected = piece.detected[order]
+            cand = Candidates(**{k: None if v is None else v[order]
+                                 for k, v in cand.__dict__.items()})
+        piece.cand = cand
