@@ -63,6 +63,7 @@ from .scenario import NamedComponent, Scenario, load_scenario, scenario_from_dic
 from .trajectories.base import Trajectory
 from .stages.bounces import BounceStage
 from .stages.receiver import ReceiverStage
+from .stages.sun import SunStage
 from .stages import (CandidateStage, DetectionStage, NoiseStage, Piece, SceneRays,
                      SelectionStage, Stage, record_columns)
 from .vec3 import rowdot
@@ -171,7 +172,7 @@ class Simulation:
         self.spurious = [(i, m) for i, m in enumerate(self.noise)
                          if isinstance(m, SpuriousReturnModel)]
         self.false_alarm_part = -1
-        if self.spurious:
+        if self.spurious or scenario.sun is not None:
             self.false_alarm_part = len(self.part_names)
             self.part_names.append(FALSE_ALARM_PART)
             materials.append(Material(description="false alarm (no surface)"))
@@ -216,6 +217,9 @@ class Simulation:
                                   field="sensor.multipath")
             self.keep_normals = True
             self.stages.append(BounceStage(self, multipath))
+        if scenario.sun is not None:
+            self.keep_normals = True
+            self.stages.append(SunStage(self, scenario.sun))
         self.stages.append(DetectionStage(self))
         if scenario.sensor.receiver is not None:
             self.stages.append(ReceiverStage(self, scenario.sensor.receiver))
@@ -457,6 +461,13 @@ class Simulation:
             stage = next(s for s in self.stages if isinstance(s, ReceiverStage))
             info["receiver"] = {"saturation_signal": receiver.saturation_signal,
                                 "range_walk_sigma_m": stage.sigma_m}
+        if self.scenario.sun is not None:
+            sun = next(s for s in self.stages if isinstance(s, SunStage))
+            info["sun"] = {"direction": sun.direction.tolist(),
+                           "spectral_irradiance_w_m2_nm": sun.irradiance,
+                           "filter_width_nm": sun.filter_width_nm,
+                           "white_background": sun.white_background,
+                           "blinding_angle_deg": sun.blinding_deg}
         if info or self.spurious:
             info["return_mode"] = self.return_mode
             if self.return_mode == "dual":

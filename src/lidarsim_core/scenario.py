@@ -36,6 +36,7 @@ from .radiometry import DetectionConfig
 from .returns import ReturnsConfig
 from .stages.bounces import MultipathConfig
 from .stages.receiver import ReceiverConfig
+from .stages.sun import SunConfig
 
 
 class _Strict(BaseModel):
@@ -197,6 +198,9 @@ class Scenario(_Strict):
     noise: list[NamedComponent] | None = Field(
         None, description="Noise chain in order; default: the datasheet's angular and range "
                           "errors; [] for a noiseless run.")
+    sun: SunConfig | None = Field(
+        None, description="The Sun: shadows, solar background false alarms and blinding "
+                          "(needs sensor.detection); omitted: a dark sky.")
     chunk_rays: int = Field(131072, ge=1, description="Rays processed per chunk (memory bound).")
     materials: dict[str, dict[str, Any]] = Field(
         default_factory=dict, description="Your own named materials (name → material fields: "
@@ -255,6 +259,8 @@ class Scenario(_Strict):
                 target.pop("materials", None)
         if not data.get("materials"):
             data.pop("materials", None)
+        if data.get("sun") is None:
+            data.pop("sun", None)
         canon = json.dumps(data, sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(canon.encode("utf-8")).hexdigest()[:16]
 
