@@ -70,7 +70,20 @@ def _spinning_all_around() -> dict:
     return data
 
 
+def _light_in_orbit() -> dict:
+    """Multipath ghosts off a mirror-like panel, a saturating receiver and the Sun: a bounce
+    starts from a direct hit, a shadow ray from a hit, so culled pulses (which hit nothing)
+    can have neither."""
+    from lidarsim_core.report.light import ghost_scenario
+
+    data = ghost_scenario(0.05).model_dump(mode="json")
+    data["sensor"]["receiver"] = {"saturation_signal": 30.0, "range_walk": True}
+    data["sun"] = {"direction": [-0.6, 0.3, 0.74], "blinding_angle_deg": 5.0}
+    return data
+
+
 SCENES = {
+    "light-in-orbit": lambda: scenario_from_dict(_light_in_orbit()),
     "spinning-all-around": lambda: scenario_from_dict(_spinning_all_around()),
     "demo": lambda: scenario_from_dict(_demo()),
     "wide-angular-error": lambda: scenario_from_dict(_wide_angular_error()),
