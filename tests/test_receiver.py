@@ -77,3 +77,13 @@ def test_receiver_needs_detection():
     data["sensor"]["detection"] = None
     with pytest.raises(ConfigError, match="sensor.receiver"):
         Simulation(scenario_from_dict(data))
+
+
+def test_saturation_level_from_the_datasheet():
+    data = _retro(20.0, {}).model_dump()
+    with pytest.raises(ConfigError, match="sensor.receiver.saturation_signal"):
+        Simulation(scenario_from_dict(data))
+    data["sensor"]["datasheet"]["saturation_signal"] = 200.0
+    from_sheet = Simulation(scenario_from_dict(data)).run_frame(0)
+    given = Simulation(_retro(20.0, {"saturation_signal": 200.0})).run_frame(0)
+    assert np.array_equal(from_sheet["intensity"], given["intensity"])

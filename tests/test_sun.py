@@ -127,3 +127,11 @@ def test_sun_is_byte_identical_across_chunks_and_threads(monkeypatch):
         other = Simulation(sc).run_frame(0, chunk_rays=chunk)
         for key in ref.columns:
             assert np.array_equal(ref[key], other[key], equal_nan=True), key
+
+
+def test_filter_width_from_the_datasheet():
+    data = _scene({"direction": SUN.tolist()}).model_dump()
+    data["sensor"]["datasheet"]["optical_filter_nm"] = 20.0
+    info = Simulation(scenario_from_dict(data)).measurement_info()["measurement"]["sun"]
+    assert info["filter_width_nm"] == 20.0
+    assert info["white_background"] == pytest.approx(2 * solar_spectral_irradiance(905.0))

@@ -81,6 +81,12 @@ class SensorDatasheet(_Strict):
     range_resolution_m: float | None = Field(
         None, gt=0, description="Smallest separation of two surfaces that gives two returns "
                                 "(m), about c·τ/2 for a pulse of width τ.")
+    saturation_signal: float | None = Field(
+        None, gt=1, description="Signal, in units of the detection threshold, at which the "
+                                "receiver saturates (default of sensor.receiver).")
+    optical_filter_nm: float | None = Field(
+        None, gt=0, description="Width of the receiver's optical band-pass filter (nm; "
+                                "default of sun.filter_width_nm).")
     return_mode: Literal["first", "last", "strongest", "dual", "multi"] = Field(
         "strongest", description="Default return mode (see docs/realism.md).")
     dual_return: Literal["strongest_last", "first_strongest", "first_last"] = Field(

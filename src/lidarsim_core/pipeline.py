@@ -459,7 +459,7 @@ class Simulation:
         receiver = self.scenario.sensor.receiver
         if receiver is not None:
             stage = next(s for s in self.stages if isinstance(s, ReceiverStage))
-            info["receiver"] = {"saturation_signal": receiver.saturation_signal,
+            info["receiver"] = {"saturation_signal": stage.saturation,
                                 "range_walk_sigma_m": stage.sigma_m}
         if self.scenario.sun is not None:
             sun = next(s for s in self.stages if isinstance(s, SunStage))

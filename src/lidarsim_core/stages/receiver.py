@@ -46,9 +46,10 @@ class ReceiverConfig(BaseModel):
 
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
-    saturation_signal: float = Field(
-        gt=1, description="Signal (in units of the detection threshold) at which the "
-                          "receiver saturates: signal and intensity clip there.")
+    saturation_signal: float | None = Field(
+        None, gt=1, description="Signal (in units of the detection threshold) at which the "
+                                "receiver saturates: signal and intensity clip there; "
+                                "default: the datasheet's saturation_signal.")
     range_walk: bool = Field(False, description="Bias saturated returns early by the "
                                                 "uncorrected leading-edge walk ΔR(S).")
     pulse_sigma_m: float | None = Field(
@@ -74,7 +75,12 @@ class ReceiverStage:
                               "budget; add 'detection: {}' to the sensor", source=src,
                               field="sensor.receiver")
         self.link = sim.link
-        self.saturation = config.saturation_signal
+        saturation = config.saturation_signal or sim.sensor.saturation_signal
+        if saturation is None:
+            raise ConfigError(f"datasheet '{sim.sensor.name}' gives no saturation_signal; "
+                              "give it here", source=src,
+                              field="sensor.receiver.saturation_signal")
+        self.saturation = saturation
         self.sigma_m: float | None = None
         if config.range_walk:
             sigma = config.pulse_sigma_m

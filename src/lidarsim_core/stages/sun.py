@@ -92,9 +92,9 @@ class SunConfig(BaseModel):
         None, gt=0, description="Solar spectral irradiance at the sensor's wavelength "
                                 "(W m⁻² nm⁻¹); default: a 5772 K blackbody scaled to the solar "
                                 "constant at the datasheet's wavelength_nm.")
-    filter_width_nm: float = Field(
-        DEFAULT_FILTER_WIDTH_NM, gt=0, description="Receiver optical filter width Δλ (nm); "
-                                                   "default 10 nm (an estimate).")
+    filter_width_nm: float | None = Field(
+        None, gt=0, description="Receiver optical filter width Δλ (nm); default: the "
+                                "datasheet's optical_filter_nm, else 10 nm (an estimate).")
     noise_equivalent_irradiance_w_m2: float = Field(
         DEFAULT_NOISE_EQUIVALENT_IRRADIANCE_W_M2, gt=0,
         description="In-band irradiance on a white surface whose background noise equals the "
@@ -147,9 +147,10 @@ class SunStage:
                                   field="sun.spectral_irradiance_w_m2_nm")
             irradiance = solar_spectral_irradiance(sheet.wavelength_nm)
         self.irradiance = irradiance
-        self.filter_width_nm = config.filter_width_nm
+        self.filter_width_nm = (config.filter_width_nm or sheet.optical_filter_nm
+                                or DEFAULT_FILTER_WIDTH_NM)
         #: B of a white Lambertian surface facing the Sun.
-        self.white_background = irradiance * config.filter_width_nm \
+        self.white_background = irradiance * self.filter_width_nm \
             / config.noise_equivalent_irradiance_w_m2
         direction = np.asarray(config.direction, dtype=np.float64)
         self.direction = direction / np.linalg.norm(direction)
