@@ -142,3 +142,19 @@ def test_ghosts_are_byte_identical_across_chunks_and_threads(sub_rays, monkeypat
         assert set(other.columns) == set(ref.columns)
         for key in ref.columns:
             assert np.array_equal(ref[key], other[key], equal_nan=True), key
+
+
+def test_light_in_orbit_example_shows_every_effect():
+    from pathlib import Path
+
+    from lidarsim_core.scenario import load_scenario
+
+    path = Path(__file__).resolve().parents[1] / "examples" / "scenarios" / "light_in_orbit.yaml"
+    sim = Simulation(load_scenario(path))
+    cloud = sim.run_frame(0)
+    ghost = cloud["bounces"] > 0
+    assert ghost.sum() > 100 and (cloud["target"][ghost] == 0).all()  # the bus, via the panel
+    assert (cloud["part"] == sim.false_alarm_part).any()  # the Sun's false alarms
+    link = sim.link
+    ceiling = 200.0 * cloud["range"] ** link.exponent / link.constant
+    assert np.isclose(cloud["intensity"], ceiling, rtol=1e-6).any()  # saturated returns
