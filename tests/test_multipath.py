@@ -156,5 +156,6 @@ def test_light_in_orbit_example_shows_every_effect():
     assert ghost.sum() > 100 and (cloud["target"][ghost] == 0).all()  # the bus, via the panel
     assert (cloud["part"] == sim.false_alarm_part).any()  # the Sun's false alarms
     link = sim.link
-    ceiling = 200.0 * cloud["range"] ** link.exponent / link.constant
-    assert np.isclose(cloud["intensity"], ceiling, rtol=1e-6).any()  # saturated returns
+    # the signal the intensity stands for (within range noise) is clipped at 200
+    signal = cloud["intensity"] * link.constant / cloud["range"] ** link.exponent
+    assert 190 < signal.max() < 210 and (signal > 190).sum() > 10
