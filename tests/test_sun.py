@@ -115,6 +115,10 @@ def test_sun_needs_detection_and_a_direction():
     data["sun"] = {"direction": [0, 0, 0]}
     with pytest.raises(ConfigError, match="sun.direction"):
         scenario_from_dict(data)
+    data["sun"] = {"direction": [1, 0, 0], "orbit": {"epoch": EQUINOX, "altitude_km": 500,
+                                                     "inclination_deg": 51.6}}
+    with pytest.raises(ConfigError, match="exactly one of direction or orbit"):
+        scenario_from_dict(data)
 
 
 def test_sun_is_byte_identical_across_chunks_and_threads(monkeypatch):
@@ -135,3 +139,53 @@ def test_filter_width_from_the_datasheet():
     info = Simulation(scenario_from_dict(data)).measurement_info()["measurement"]["sun"]
     assert info["filter_width_nm"] == 20.0
     assert info["white_background"] == pytest.approx(2 * solar_spectral_irradiance(905.0))
+
+
+# published instants (UTC): March equinox 2024-03-20 03:06, June solstice 2024-06-20 20:51
+EQUINOX = "2024-03-20T03:06:00Z"
+
+
+def test_solar_ephemeris_at_the_equinox_and_solstice():
+    from datetime import datetime
+
+    from lidarsim_core.stages.sun import sun_direction_eci
+
+    def at(iso):
+        return sun_direction_eci(np.array([datetime.fromisoformat(iso).timestamp()]))[0]
+
+    assert math.degrees(math.acos(at("2024-03-20T03:06:00+00:00")[0])) < 0.05
+    eps = math.radians(23.439)
+    solstice = np.array([0.0, math.cos(eps), math.sin(eps)])
+    assert math.degrees(math.acos(at("2024-06-20T20:51:00+00:00") @ solstice)) < 0.05
+
+
+@pytest.mark.parametrize("u0, expected, eclipse", [
+    (0.0, [1.0, 0.0, 0.0], False),     # noon: the Sun at the zenith (+R-bar)
+    (90.0, [0.0, -1.0, 0.0], False),   # dawn side: the Sun behind, along −V-bar
+    (180.0, [-1.0, 0.0, 0.0], True),   # midnight: behind the Earth
+])
+def test_sun_in_the_lvlh_frame_of_an_equatorial_orbit(u0, expected, eclipse):
+    from lidarsim_core.stages.sun import SunOrbit, sun_in_lvlh
+
+    orbit = SunOrbit(epoch=EQUINOX, altitude_km=780, inclination_deg=0.0,
+                     argument_of_latitude_deg=u0)
+    direction, shadow = sun_in_lvlh(orbit, np.array([0.0]))
+    assert math.degrees(math.acos(direction[0] @ np.array(expected))) < 0.05
+    assert bool(shadow[0]) == eclipse
+    # a quarter orbit later the frame has turned by 90°
+    n = math.sqrt(3.986004418e14 / (6_378_137.0 + 780e3) ** 3)
+    later, _ = sun_in_lvlh(orbit, np.array([0.5 * math.pi / n]))
+    turned = np.array([expected[1], -expected[0], 0.0])  # rotate (x, y) by −90° about z
+    assert math.degrees(math.acos(later[0] @ turned)) < 0.1
+
+
+def test_sun_from_an_orbit_blinds_at_noon_and_not_in_the_earths_shadow():
+    plain = Simulation(_scene(occluder=False)).run_frame(0)
+    orbit = {"epoch": EQUINOX, "altitude_km": 780, "inclination_deg": 0.0}
+    noon = Simulation(_scene({"orbit": {**orbit, "argument_of_latitude_deg": 0.0},
+                              "blinding_angle_deg": 1.5}, occluder=False)).run_frame(0)
+    midnight = Simulation(_scene({"orbit": {**orbit, "argument_of_latitude_deg": 180.0},
+                                  "blinding_angle_deg": 1.5}, occluder=False)).run_frame(0)
+    assert 50 < len(plain) - len(noon)  # pulses near the boresight (+R-bar) are blinded
+    assert np.array_equal(midnight["ray_index"], plain["ray_index"])  # eclipse: no Sun
+    assert not (midnight["target"] == -1).any()

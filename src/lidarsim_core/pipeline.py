@@ -463,7 +463,10 @@ class Simulation:
                                 "range_walk_sigma_m": stage.sigma_m}
         if self.scenario.sun is not None:
             sun = next(s for s in self.stages if isinstance(s, SunStage))
-            info["sun"] = {"direction": sun.direction.tolist(),
+            info["sun"] = {"direction": None if sun.direction is None
+                           else sun.direction.tolist(),
+                           "orbit": None if sun.orbit is None
+                           else sun.orbit.model_dump(mode="json"),
                            "spectral_irradiance_w_m2_nm": sun.irradiance,
                            "filter_width_nm": sun.filter_width_nm,
                            "white_background": sun.white_background,

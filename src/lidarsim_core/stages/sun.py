@@ -21,6 +21,12 @@ cell of width ΔR (the range resolution) crosses it by noise alone with probabil
 noise model's business. A solar false alarm lies at a uniform range in the gate, with the
 threshold signal (S = 1), like any false alarm.
 
+**Direction.** Either fixed (``direction``, scene frame) or from an orbit and an epoch
+(``orbit``): the scene frame is then the target's LVLH frame on a circular orbit
+(:mod:`lidarsim_core.trajectories.orbit`: +x radial, +y along-track, +z orbit normal), the Sun's
+inertial direction comes from the Astronomical Almanac's low-precision solar coordinates
+(about 0.01°) at each pulse's time, and in the Earth's (cylindrical) shadow there is no Sun.
+
 **Blinding.** Pulses whose flown direction lies within ``blinding_angle_deg`` of the Sun are
 blinded (the Sun floods the receiver): they report nothing. The default is the Sun's angular
 radius (0.2666°) plus the receiver's acceptance half-angle: the solar disc inside the
@@ -33,10 +39,12 @@ Reads ``piece.hits`` (with normals), ``piece.scene`` and ``piece.cand``; writes 
 from __future__ import annotations
 
 import math
+from datetime import datetime, timezone
 from typing import TYPE_CHECKING
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from scipy.spatial.transform import Rotation
 
 from ..chunks import rotate, to_body
 from ..errors import ConfigError
@@ -81,13 +89,38 @@ def solar_spectral_irradiance(wavelength_nm: float) -> float:
     return math.pi * planck * SOLAR_CONSTANT_W_M2 / (_SIGMA * SUN_TEMPERATURE_K ** 4) * 1e-9
 
 
+class SunOrbit(BaseModel):
+    """The target's circular orbit and the epoch of the scenario's t = 0, from which the Sun's
+    direction in the LVLH scene frame follows."""
+
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
+
+    epoch: datetime = Field(description="UTC date and time of the scenario's t = 0 "
+                                        "(ISO 8601, e.g. 2024-03-20T12:00:00Z).")
+    altitude_km: float = Field(gt=0, description="Altitude above the Earth's equatorial "
+                                                 "radius (km).")
+    inclination_deg: float = Field(ge=0, le=180, description="Orbit inclination (deg).")
+    raan_deg: float = Field(0.0, description="Right ascension of the ascending node (deg).")
+    argument_of_latitude_deg: float = Field(
+        0.0, description="Angle from the ascending node to the target at the epoch (deg).")
+
+    @field_validator("epoch")
+    @classmethod
+    def _utc(cls, value: datetime) -> datetime:
+        return value.replace(tzinfo=timezone.utc) if value.tzinfo is None else value
+
+
 class SunConfig(BaseModel):
     """The Sun (off unless this block is given; needs ``sensor.detection``)."""
 
     model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
-    direction: tuple[float, float, float] = Field(
-        description="Direction toward the Sun in the scene frame (normalised here).")
+    direction: tuple[float, float, float] | None = Field(
+        None, description="Direction toward the Sun in the scene frame (normalised here); or "
+                          "give orbit.")
+    orbit: SunOrbit | None = Field(
+        None, description="The target's orbit and epoch: the Sun's direction in the LVLH "
+                          "scene frame at each pulse's time, and the Earth's shadow.")
     spectral_irradiance_w_m2_nm: float | None = Field(
         None, gt=0, description="Solar spectral irradiance at the sensor's wavelength "
                                 "(W m⁻² nm⁻¹); default: a 5772 K blackbody scaled to the solar "
@@ -106,10 +139,52 @@ class SunConfig(BaseModel):
 
     @field_validator("direction")
     @classmethod
-    def _nonzero(cls, value: tuple[float, float, float]) -> tuple[float, float, float]:
-        if math.hypot(*value) == 0.0:
+    def _nonzero(cls, value: tuple[float, float, float] | None
+                 ) -> tuple[float, float, float] | None:
+        if value is not None and math.hypot(*value) == 0.0:
             raise ValueError("the Sun's direction must not be the zero vector")
         return value
+
+    @model_validator(mode="after")
+    def _one_source(self) -> "SunConfig":
+        if (self.direction is None) == (self.orbit is None):
+            raise ValueError("give exactly one of direction or orbit")
+        return self
+
+
+def sun_direction_eci(unix_s: np.ndarray) -> np.ndarray:
+    """(N, 3) unit vectors toward the Sun in the mean equatorial frame of date (Earth-centred
+    inertial), from the Astronomical Almanac's low-precision formulas (about 0.01°)."""
+    days = (np.asarray(unix_s, dtype=np.float64) / 86400.0 + 2440587.5) - 2451545.0
+    mean_longitude = np.radians(280.460 + 0.9856474 * days)
+    anomaly = np.radians(357.528 + 0.9856003 * days)
+    ecliptic = mean_longitude + np.radians(1.915 * np.sin(anomaly)
+                                           + 0.020 * np.sin(2.0 * anomaly))
+    obliquity = np.radians(23.439 - 4e-7 * days)
+    return np.stack([np.cos(ecliptic), np.cos(obliquity) * np.sin(ecliptic),
+                     np.sin(obliquity) * np.sin(ecliptic)], axis=1)
+
+
+def sun_in_lvlh(orbit: SunOrbit, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Sun direction in the target's LVLH frame at times ``t`` (s from the epoch), and whether
+    the target is in the Earth's cylindrical shadow."""
+    from ..trajectories.orbit import R_EARTH_M, mean_motion_from_altitude
+
+    t = np.asarray(t, dtype=np.float64)
+    sun = sun_direction_eci(orbit.epoch.timestamp() + t)
+    n = mean_motion_from_altitude(orbit.altitude_km)
+    u = math.radians(orbit.argument_of_latitude_deg) + n * t
+    # perifocal → inertial: R3(−Ω) R1(−i)
+    frame = Rotation.from_euler("ZX", [orbit.raan_deg, orbit.inclination_deg], degrees=True)
+    zeros = np.zeros_like(u)
+    radial = frame.apply(np.stack([np.cos(u), np.sin(u), zeros], axis=1))
+    along = frame.apply(np.stack([-np.sin(u), np.cos(u), zeros], axis=1))
+    normal = frame.apply(np.array([0.0, 0.0, 1.0]))
+    lvlh = np.stack([rowdot(sun, radial), rowdot(sun, along), sun @ normal], axis=1)
+    a = R_EARTH_M + 1000.0 * orbit.altitude_km
+    along_sun = a * rowdot(radial, sun)
+    eclipse = (along_sun < 0) & (a * a - along_sun * along_sun < R_EARTH_M ** 2)
+    return lvlh, eclipse
 
 
 def false_alarm_probability(background: np.ndarray, threshold_to_noise: float,
@@ -152,8 +227,12 @@ class SunStage:
         #: B of a white Lambertian surface facing the Sun.
         self.white_background = irradiance * self.filter_width_nm \
             / config.noise_equivalent_irradiance_w_m2
-        direction = np.asarray(config.direction, dtype=np.float64)
-        self.direction = direction / np.linalg.norm(direction)
+        self.orbit = config.orbit
+        #: The fixed direction toward the Sun (scene frame), None when it follows an orbit.
+        self.direction: np.ndarray | None = None
+        if config.direction is not None:
+            direction = np.asarray(config.direction, dtype=np.float64)
+            self.direction = direction / np.linalg.norm(direction)
         blinding = config.blinding_angle_deg
         if blinding is None:
             multipath = sim.scenario.sensor.multipath or MultipathConfig()
@@ -175,13 +254,22 @@ class SunStage:
         return np.maximum(false_alarm_probability(background, self.threshold_to_noise,
                                                   self.cells) - self.dark, 0.0)
 
+    def sun_at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(N, 3) directions toward the Sun (scene frame) at pulse times ``t`` and whether the
+        Sun shines there (False in the Earth's shadow)."""
+        if self.direction is not None:
+            return np.broadcast_to(self.direction, (len(t), 3)), np.ones(len(t), dtype=bool)
+        direction, eclipse = sun_in_lvlh(self.orbit, t)
+        return direction, ~eclipse
+
     def run(self, piece: Piece) -> None:
         batch, hits, scene = piece.batch, piece.hits, piece.scene
         k = 1 if self.sub_rays is None else self.sub_rays.count
         n = len(batch)
+        sun, shining = self.sun_at(batch.t)
         # blinding: the flown direction (scene frame) within the angle of the Sun
-        blinded = scene.vectors[0] @ self.direction >= self.cos_blinding
-        background = self.background(hits, scene, k, n)
+        blinded = shining & (rowdot(scene.vectors[0], sun) >= self.cos_blinding)
+        background = self.background(hits, scene, k, n, sun) * shining
         u = ray_uniforms(self.seed, piece.frame, SUN_STREAM, batch.index, 2)
         alarm = np.flatnonzero((u[:, 0] < self.probability(background)) & ~blinded)
         rng = self.range_min_m + u[alarm, 1] * (self.range_limit - self.range_min_m)
@@ -193,7 +281,7 @@ class SunStage:
         piece.cand = Candidates.concatenate([cand, self.candidates.spurious_candidates(alarm,
                                                                                          rng)])
 
-    def background(self, hits, scene, k: int, n: int) -> np.ndarray:
+    def background(self, hits, scene, k: int, n: int, sun: np.ndarray) -> np.ndarray:
         """B of every pulse: sunlit footprint share × ρ_d cos θ_s × B_white (energy-weighted
         over sub-rays)."""
         ray = np.flatnonzero(hits.target >= 0)
@@ -210,10 +298,11 @@ class SunStage:
             normal[sel] = rotate(_take(scene.target_poses[j], pulse[sel]), hits.normal[ray[sel]])
         # the side of the surface the sensor sees
         normal *= -np.sign(rowdot(normal, direction))[:, None]
-        cos_sun = normal @ self.direction
+        sun_ray = sun[pulse]
+        cos_sun = rowdot(normal, sun_ray)
         lit = np.flatnonzero(cos_sun > 0)
-        shadowed = self._shadowed(point[lit], pulse[lit], scene.target_poses, hits.distance[
-            ray[lit]], target[lit], hits.face[ray[lit]])
+        shadowed = self._shadowed(point[lit], sun_ray[lit], pulse[lit], scene.target_poses,
+                                  hits.distance[ray[lit]], target[lit], hits.face[ray[lit]])
         lit = lit[~shadowed]
         weight = np.full(len(ray), 1.0 / k) if self.sub_rays is None else \
             self.sub_rays.weights[ray % k]
@@ -222,15 +311,14 @@ class SunStage:
                              * cos_sun[lit] * self.white_background)
         return np.bincount(pulse, weights=contribution, minlength=n)
 
-    def _shadowed(self, point: np.ndarray, pulse: np.ndarray, target_poses: list,
-                  distance: np.ndarray, from_target: np.ndarray, from_face: np.ndarray
-                  ) -> np.ndarray:
+    def _shadowed(self, point: np.ndarray, sun: np.ndarray, pulse: np.ndarray,
+                  target_poses: list, distance: np.ndarray, from_target: np.ndarray,
+                  from_face: np.ndarray) -> np.ndarray:
         """Whether the shadow ray from each point toward the Sun meets any target."""
         blocked = np.zeros(len(point), dtype=bool)
         if not len(point):
             return blocked
-        start = point + self.direction * (BOUNCE_OFFSET_M * (1.0 + distance))[:, None]
-        sun = np.broadcast_to(self.direction, start.shape)
+        start = point + sun * (BOUNCE_OFFSET_M * (1.0 + distance))[:, None]
         for j, target in enumerate(self.targets):
             poses = _take(target_poses[j], pulse)
             hits = self.backend.cast(target.mesh, to_body(poses, start),
