@@ -189,3 +189,31 @@ def test_sun_from_an_orbit_blinds_at_noon_and_not_in_the_earths_shadow():
     assert 50 < len(plain) - len(noon)  # pulses near the boresight (+R-bar) are blinded
     assert np.array_equal(midnight["ray_index"], plain["ray_index"])  # eclipse: no Sun
     assert not (midnight["target"] == -1).any()
+
+
+def test_background_noise_lowers_detection_where_sunlit():
+    """A dark plate (S ≈ 1.3 face-on at 20 m): the shaded half is detected with
+    Φ(TNR (S − 1)), the lit half with Φ(TNR (S − 1)/√(1 + B)); every hit is kept, to count
+    detections against Σ P_d."""
+    rho = 1.3 * 20.0 ** 2 / 81000.0  # C = 90² / 0.1, n = 2
+    e_eq = 0.05
+    data = _scene({"direction": SUN.tolist(), "noise_equivalent_irradiance_w_m2": e_eq}
+                  ).model_dump()
+    data["sensor"]["detection"] = {"range_max_m": 100.0, "keep_undetected": True}
+    data["targets"][0]["materials"] = {"plate": {"diffuse_reflectivity": rho}}
+    sim = Simulation(scenario_from_dict(data))
+    cloud = sim.run_frame(0)
+    plate = cloud["target"] == 0
+    s = sim.link.signal(cloud["intensity"][plate].astype(np.float64), cloud["range_true"][plate])
+    b = rho * math.cos(math.radians(45.0)) * solar_spectral_irradiance(905.0) * 10.0 / e_eq
+    assert 0.5 < b < 2.0
+    lit = cloud["z_true"][plate] < -1e-6
+    dark = cloud["z_true"][plate] > 1e-6
+    detected = cloud["detected"][plate] == 1
+    tnr = sim.link.threshold_to_noise
+    for half, scale in ((lit, math.sqrt(1.0 + b)), (dark, 1.0)):
+        p = ndtr(tnr * (s[half] - 1.0) / scale)
+        assert half.sum() > 1000
+        sd = math.sqrt((p * (1 - p)).sum())
+        assert abs(detected[half].sum() - p.sum()) < 4.5 * sd
+    assert detected[lit].mean() < detected[dark].mean() - 0.05

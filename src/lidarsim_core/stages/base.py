@@ -92,6 +92,9 @@ class Piece:
     count: np.ndarray | None = None
     range_measured: np.ndarray | None = None
     direction_measured: np.ndarray | None = None
+    #: (N,) receiver noise σ / σ_n of each pulse when background light raises it (the Sun
+    #: stage); None: the link budget's own noise.
+    noise_scale: np.ndarray | None = None
     #: Extra point-record columns written by optional stages (name → (M_written,) array).
     extra: dict[str, np.ndarray] = field(default_factory=dict)
 

@@ -1,7 +1,8 @@
 """Detection: the range gate, then, with ``sensor.detection``, the link budget's draw
-(P_d = Φ(TNR (S − 1)), docs/realism.md).
+(P_d = Φ(TNR (S − 1)), docs/realism.md; Φ(TNR (S − 1) / √(1 + B)) where the Sun's background B
+raises the receiver's noise).
 
-Reads ``piece.cand``; writes ``piece.detected``.
+Reads ``piece.cand`` and ``piece.noise_scale``; writes ``piece.detected``.
 """
 
 from __future__ import annotations
@@ -50,4 +51,7 @@ class DetectionStage:
                 ghost = ray_uniforms(self.seed, piece.frame, f"{DETECTION_STREAM}#b{int(b)}",
                                      piece.batch.index[cand.pulse[sel]], self.rays_per_pulse)
                 draw[sel] = ghost[np.arange(len(sel)), cand.group[sel]]
-        piece.detected = detected & (~real | (draw < self.link.detection_probability(cand.signal)))
+        signal = cand.signal
+        if piece.noise_scale is not None:  # background noise σ = σ_n √(1 + B): P_d falls
+            signal = 1.0 + (signal - 1.0) / piece.noise_scale[cand.pulse]
+        piece.detected = detected & (~real | (draw < self.link.detection_probability(signal)))

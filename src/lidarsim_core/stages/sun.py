@@ -27,13 +27,16 @@ threshold signal (S = 1), like any false alarm.
 inertial direction comes from the Astronomical Almanac's low-precision solar coordinates
 (about 0.01°) at each pulse's time, and in the Earth's (cylindrical) shadow there is no Sun.
 
+**Detection.** The same noise lowers the detection probability of the pulse's real returns,
+``P_d = Φ(TNR (S − 1) / √(1 + B))``: sunlit surfaces are seen less far.
+
 **Blinding.** Pulses whose flown direction lies within ``blinding_angle_deg`` of the Sun are
 blinded (the Sun floods the receiver): they report nothing. The default is the Sun's angular
 radius (0.2666°) plus the receiver's acceptance half-angle: the solar disc inside the
 receiver's view.
 
 Reads ``piece.hits`` (with normals), ``piece.scene`` and ``piece.cand``; writes ``piece.cand``
-(blinded pulses' candidates removed, solar false alarms added).
+(blinded pulses' candidates removed, solar false alarms added) and ``piece.noise_scale``.
 """
 
 from __future__ import annotations
@@ -270,6 +273,7 @@ class SunStage:
         # blinding: the flown direction (scene frame) within the angle of the Sun
         blinded = shining & (rowdot(scene.vectors[0], sun) >= self.cos_blinding)
         background = self.background(hits, scene, k, n, sun) * shining
+        piece.noise_scale = np.sqrt(1.0 + background)
         u = ray_uniforms(self.seed, piece.frame, SUN_STREAM, batch.index, 2)
         alarm = np.flatnonzero((u[:, 0] < self.probability(background)) & ~blinded)
         rng = self.range_min_m + u[alarm, 1] * (self.range_limit - self.range_min_m)
