@@ -31,7 +31,6 @@ every hit inside the range gate, one per pulse: the seed paper's model, to the b
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterator
@@ -61,11 +60,7 @@ from .registry import Registry
 from .returns import ReturnsConfig, SubRayHits
 from .scenario import NamedComponent, Scenario, load_scenario, scenario_from_dict
 from .trajectories.base import Trajectory
-from .stages.bounces import BounceStage
-from .stages.receiver import ReceiverStage
-from .stages.sun import SunStage
-from .stages import (CandidateStage, DetectionStage, NoiseStage, Piece, SceneRays,
-                     SelectionStage, Stage, record_columns)
+from .stages import Piece, SceneRays, Stage, measurement_stages, record_columns
 from .vec3 import rowdot
 
 DEFAULT_NOISE_CHAIN = ("angular", "range")
@@ -206,24 +201,9 @@ class Simulation:
             self.sub_rays = sub_rays_for(beam, divergence)
         self.range_resolution_m = resolution
         #: Whether the cast keeps the hit normals (stages that cast secondary rays need them).
-        self.keep_normals = False
+        self.keep_normals = scenario.sensor.multipath is not None or scenario.sun is not None
         #: The measurement stages, run in order on every piece (:mod:`lidarsim_core.stages`).
-        self.stages: list[Stage] = [CandidateStage(self)]
-        multipath = scenario.sensor.multipath
-        if multipath is not None:
-            if self.link is None:
-                raise ConfigError("multipath ghosts are detected by the link budget; add "
-                                  "'detection: {}' to the sensor", source=src,
-                                  field="sensor.multipath")
-            self.keep_normals = True
-            self.stages.append(BounceStage(self, multipath))
-        if scenario.sun is not None:
-            self.keep_normals = True
-            self.stages.append(SunStage(self, scenario.sun))
-        self.stages.append(DetectionStage(self))
-        if scenario.sensor.receiver is not None:
-            self.stages.append(ReceiverStage(self, scenario.sensor.receiver))
-        self.stages += [SelectionStage(self), NoiseStage(self)]
+        self.stages: list[Stage] = measurement_stages(self)
 
     @property
     def rays_per_pulse(self) -> int:
@@ -450,27 +430,9 @@ class Simulation:
         if self.sub_rays is not None:
             info["beam"] = {"sub_rays": self.sub_rays.count,
                             "range_resolution_m": self.range_resolution_m}
-        multipath = self.scenario.sensor.multipath
-        if multipath is not None:
-            bounce = next(s for s in self.stages if isinstance(s, BounceStage))
-            info["multipath"] = {"max_bounces": multipath.max_bounces,
-                                 "acceptance_deg": math.degrees(bounce.acceptance_rad),
-                                 "min_coupling": multipath.min_coupling}
-        receiver = self.scenario.sensor.receiver
-        if receiver is not None:
-            stage = next(s for s in self.stages if isinstance(s, ReceiverStage))
-            info["receiver"] = {"saturation_signal": stage.saturation,
-                                "range_walk_sigma_m": stage.sigma_m}
-        if self.scenario.sun is not None:
-            sun = next(s for s in self.stages if isinstance(s, SunStage))
-            info["sun"] = {"direction": None if sun.direction is None
-                           else sun.direction.tolist(),
-                           "orbit": None if sun.orbit is None
-                           else sun.orbit.model_dump(mode="json"),
-                           "spectral_irradiance_w_m2_nm": sun.irradiance,
-                           "filter_width_nm": sun.filter_width_nm,
-                           "white_background": sun.white_background,
-                           "blinding_angle_deg": sun.blinding_deg}
+        for stage in self.stages:  # the optional stages describe themselves
+            if hasattr(stage, "info"):
+                info[stage.name] = stage.info()
         if info or self.spurious:
             info["return_mode"] = self.return_mode
             if self.return_mode == "dual":

@@ -6,15 +6,28 @@ piece it reads and writes, in its module docstring):
 
 1. :class:`CandidateStage` (``candidates``): hits → candidate returns with signal and
    intensity; false-alarm noise models add theirs;
-2. :class:`DetectionStage` (``detection``): range gate and the link budget's draw;
-3. :class:`SelectionStage` (``returns``): the return mode's picks;
-4. :class:`NoiseStage` (``noise``): return-stage noise of the reported returns;
+2. :class:`~.bounces.BounceStage` (``bounces``, with ``sensor.multipath``): specular bounces
+   and their ghost returns;
+3. :class:`~.sun.SunStage` (``sun``, with ``sun``): shadows, solar false alarms, blinding;
+4. :class:`DetectionStage` (``detection``): range gate and the link budget's draw;
+5. :class:`~.receiver.ReceiverStage` (``receiver``, with ``sensor.receiver``): saturation and
+   range walk;
+6. :class:`SelectionStage` (``returns``): the return mode's picks;
+7. :class:`NoiseStage` (``noise``): return-stage noise of the reported returns;
 
-then :func:`record_columns` writes the point record. Optional stages (multipath, receiver
-dynamic range, the Sun) slot in between when the scenario switches them on; when it does not
-they are not in the list, so the seed paper's model runs exactly the code it always ran.
+then :func:`record_columns` writes the point record. An optional stage is in the list only
+when the scenario switches it on, so the seed paper's model runs exactly the code it always
+ran. Optional stages have an ``info()`` method: what they add to the frame metadata
+(``frame.extra["measurement"][name]``).
+
+A new effect is a new stage module: a class with ``name`` and ``run(piece)`` (the
+:class:`Stage` protocol), its configuration model, and one line in
+:func:`measurement_stages`.
 """
 
+from typing import TYPE_CHECKING
+
+from ..errors import ConfigError
 from .base import Piece, SceneRays, Stage
 from .candidates import CandidateStage
 from .detection import DetectionStage
@@ -22,5 +35,31 @@ from .noise import NoiseStage
 from .record import record_columns
 from .selection import SelectionStage
 
+if TYPE_CHECKING:
+    from ..pipeline import Simulation
+
 __all__ = ["CandidateStage", "DetectionStage", "NoiseStage", "Piece", "SceneRays",
-           "SelectionStage", "Stage", "record_columns"]
+           "SelectionStage", "Stage", "measurement_stages", "record_columns"]
+
+
+def measurement_stages(sim: "Simulation") -> list[Stage]:
+    """The stages of ``sim``'s scenario, in the order they run (see the module docstring)."""
+    from .bounces import BounceStage
+    from .receiver import ReceiverStage
+    from .sun import SunStage
+
+    scenario = sim.scenario
+    stages: list[Stage] = [CandidateStage(sim)]
+    multipath = scenario.sensor.multipath
+    if multipath is not None:
+        if sim.link is None:
+            raise ConfigError("multipath ghosts are detected by the link budget; add "
+                              "'detection: {}' to the sensor", source=scenario.source,
+                              field="sensor.multipath")
+        stages.append(BounceStage(sim, multipath))
+    if scenario.sun is not None:
+        stages.append(SunStage(sim, scenario.sun, stages[0]))
+    stages.append(DetectionStage(sim))
+    if scenario.sensor.receiver is not None:
+        stages.append(ReceiverStage(sim, scenario.sensor.receiver))
+    return stages + [SelectionStage(sim), NoiseStage(sim)]

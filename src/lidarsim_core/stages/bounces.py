@@ -105,6 +105,12 @@ class BounceStage:
         self.sub_rays = sim.sub_rays
         self.range_resolution_m = sim.range_resolution_m
 
+    def info(self) -> dict:
+        """Frame metadata: the bounce settings."""
+        return {"max_bounces": self.max_bounces,
+                "acceptance_deg": math.degrees(self.acceptance_rad),
+                "min_coupling": self.min_coupling}
+
     def coupling(self, part: np.ndarray, cos_incidence: np.ndarray) -> np.ndarray:
         """κ of hits on ``part`` at incidence cosines ``cos_incidence``."""
         return mirror_coupling(self.materials.specular[part], self.materials.slope2[part],

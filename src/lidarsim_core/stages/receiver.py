@@ -93,6 +93,10 @@ class ReceiverStage:
                 sigma = sim.range_resolution_m / FWHM_PER_SIGMA
             self.sigma_m = sigma
 
+    def info(self) -> dict:
+        """Frame metadata: the saturation level and the walk's pulse length (None: no walk)."""
+        return {"saturation_signal": self.saturation, "range_walk_sigma_m": self.sigma_m}
+
     def run(self, piece: Piece) -> None:
         cand = piece.cand
         hot = np.flatnonzero(piece.detected & (cand.signal > self.saturation))

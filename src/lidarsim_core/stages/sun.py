@@ -59,6 +59,7 @@ from .bounces import BOUNCE_OFFSET_M, _take
 
 if TYPE_CHECKING:
     from ..pipeline import Simulation
+    from .candidates import CandidateStage
 
 #: Solar effective temperature (K): IAU 2015 Resolution B3 nominal value.
 SUN_TEMPERATURE_K = 5772.0
@@ -205,7 +206,8 @@ class SunStage:
 
     name = "sun"
 
-    def __init__(self, sim: "Simulation", config: SunConfig) -> None:
+    def __init__(self, sim: "Simulation", config: SunConfig, candidates: "CandidateStage"
+                 ) -> None:
         from .bounces import MultipathConfig, acceptance_deg
 
         src, sheet = sim.scenario.source, sim.sensor
@@ -250,7 +252,16 @@ class SunStage:
         self.seed = sim.scenario.seed
         self.backend, self.targets, self.materials = sim.backend, sim.targets, sim.materials
         self.sub_rays = sim.sub_rays
-        self.candidates = next(s for s in sim.stages if s.name == "candidates")
+        self.candidates = candidates
+
+    def info(self) -> dict:
+        """Frame metadata: direction or orbit, irradiance, filter, white background, blinding."""
+        return {"direction": None if self.direction is None else self.direction.tolist(),
+                "orbit": None if self.orbit is None else self.orbit.model_dump(mode="json"),
+                "spectral_irradiance_w_m2_nm": self.irradiance,
+                "filter_width_nm": self.filter_width_nm,
+                "white_background": self.white_background,
+                "blinding_angle_deg": self.blinding_deg}
 
     def probability(self, background: np.ndarray) -> np.ndarray:
         """Solar false alarms per pulse: P(B) − P(0)."""
