@@ -159,3 +159,20 @@ def test_light_in_orbit_example_shows_every_effect():
     # the signal the intensity stands for (within range noise) is clipped at 200
     signal = cloud["intensity"] * link.constant / cloud["range"] ** link.exponent
     assert 190 < signal.max() < 210 and (signal > 190).sum() > 10
+
+
+def test_every_light_effect_with_sub_rays_is_byte_identical_across_chunks_and_threads(
+        monkeypatch):
+    data = _scene(sub_rays=8, noise=[{"name": "angular"}, {"name": "range"}],
+                  sun={"direction": [-0.8, 0.5, 0.33], "spectral_irradiance_w_m2_nm": 0.9,
+                       "noise_equivalent_irradiance_w_m2": 2.0}).model_dump()
+    data["targets"][0]["materials"]["plate"]["diffuse_reflectivity"] = 0.3  # sunlit background
+    data["sensor"]["receiver"] = {"saturation_signal": 50.0, "range_walk": True}
+    sc = scenario_from_dict(data)
+    ref = Simulation(sc).run_frame(0)
+    assert (ref["bounces"] > 0).sum() > 100 and (ref["target"] == -1).sum() > 5
+    for chunk, threads in ((89, "1"), (1500, "2")):
+        monkeypatch.setenv("LIDARSIM_THREADS", threads)
+        other = Simulation(sc).run_frame(0, chunk_rays=chunk)
+        for key in ref.columns:
+            assert np.array_equal(ref[key], other[key], equal_nan=True), key

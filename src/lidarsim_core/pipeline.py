@@ -11,8 +11,10 @@ For every chunk of rays (vectorised throughout):
    ``sensor.beam`` every pulse becomes K sub-rays over its divergence footprint, all cast in
    the same batch (:mod:`lidarsim_core.beam`);
 4. the backend finds the first hit on every target; the closest target wins;
-Steps 5-8 are the measurement stages (:mod:`lidarsim_core.stages`, one module each, run in
-order on a :class:`~lidarsim_core.stages.Piece`); :class:`Simulation` only coordinates:
+
+steps 5-8 are the measurement stages (:mod:`lidarsim_core.stages`, one module each, run in
+order on a :class:`~lidarsim_core.stages.Piece`; :class:`Simulation` only coordinates), with
+the optional multipath, Sun and receiver stages in between when the scenario asks for them:
 
 5. hits become candidate returns: one per pulse, or the pulse's sub-ray hits grouped by
    range (:mod:`lidarsim_core.returns`), each with a signal and an intensity from the parts'
