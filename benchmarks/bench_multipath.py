@@ -16,7 +16,9 @@ shared machine are noisy; ratios within one run are what to read):
   any specular component (most of Envisat: MLI, cover glass, radiators) is bounced twice, the
   worst case.
 
-It prints the time of each, the ratio to ``direct`` and how many ghosts the run reported.
+It prints the time of each, the ratio to ``direct``, the rays cast (direct, bounce and any
+other casts: a count that does not depend on the machine's load) and how many ghosts the run
+reported.
 """
 
 from __future__ import annotations
@@ -50,8 +52,22 @@ def main() -> None:
             "bounces=1 all": {"max_bounces": 1, "min_coupling": 0.0},
             "bounces=2 all": {"max_bounces": 2, "min_coupling": 0.0}}
     sims = {name: Simulation(scenario(args.duration, mp)) for name, mp in runs.items()}
-    for sim in sims.values():  # warm up: acceleration structures, compiled kernels
+    rays = {}
+    for name, sim in sims.items():  # warm up (acceleration structures, kernels); count rays
+        counter = {"rays": 0}
+        cast = sim.backend.cast
+
+        def counting(mesh, origins, directions, cast=cast, counter=counter):
+            counter["rays"] += len(origins)
+            return cast(mesh, origins, directions)
+
+        sim.backend.cast = counting
+        for stage in sim.stages:
+            if hasattr(stage, "backend"):
+                stage.backend = sim.backend
         sim.run_frame(0)
+        rays[name] = counter["rays"]
+        sim.backend.cast = cast
     best = {name: float("inf") for name in runs}
     ghosts = {}
     for _ in range(args.repeat):
@@ -66,6 +82,7 @@ def main() -> None:
           f"best of {args.repeat}")
     for name in runs:
         print(f"{name:>14}: {best[name]:.3f} s  ({best[name] / best['direct']:.2f}x direct)  "
+              f"rays cast {rays[name]} ({rays[name] / rays['direct']:.2f}x)  "
               f"ghost points: {ghosts[name]}")
     print(f"points (last run): {points}")
     print(f"max_bounces 2 / max_bounces 1: {best['bounces=2'] / best['bounces=1']:.2f}x "

@@ -28,6 +28,7 @@ point in the sensor frame).
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -162,7 +163,13 @@ class BounceStage:
                                            cos_inc, gain, true_point, len(hits.distance), k))
             if not len(ray):
                 break
-        piece.cand = Candidates.concatenate([piece.cand, *ghosts])
+        ghosts = [g for g in ghosts if len(g)]
+        if ghosts:
+            piece.cand = Candidates.concatenate([piece.cand, *ghosts])
+        else:  # nothing to merge: every candidate is direct, already in (pulse, range) order
+            m = len(piece.cand)
+            piece.cand = replace(piece.cand, bounces=np.zeros(m, dtype=np.uint8),
+                                 true_point=np.full((m, 3), np.nan))
 
     def _cast(self, origin: np.ndarray, direction: np.ndarray, pulse: np.ndarray,
               target_poses: list, from_target: np.ndarray, from_face: np.ndarray
