@@ -23,7 +23,9 @@ culling and compare every column.
 Culling is used when the compiled kernels are (:mod:`lidarsim_core.kernels`) and every
 ray-stage noise model describes itself through
 :meth:`~lidarsim_core.noise.base.NoiseModel.ray_rotation`; not with false-alarm models, which
-add returns to pulses that hit nothing.
+add returns to pulses that hit nothing. Multipath bounces and the Sun's shadow rays and
+background start from a pulse's direct hit, so a culled pulse (which hits nothing) has none of
+them either: culling stays exact with ``sensor.multipath`` and ``sun`` (tested).
 """
 
 from __future__ import annotations
