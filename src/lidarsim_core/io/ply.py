@@ -20,14 +20,16 @@ uint32, int64, uint64    double     ray_index (and any other 64-bit integer colu
 
 The frame metadata is in the header as ``comment lidarsim-frame <piece>`` lines of under 200
 characters (:mod:`lidarsim_core.io.headermeta`; RPly aborts the process on a header line over
-~1 KB), and the exact part and target names as ``comment lidarsim-part <index> <name>`` /
-``comment lidarsim-target <index> <name>`` lines, so that ``part`` and ``target`` can be
-labelled with nothing but a PLY reader. The sidecar JSON holds the metadata too.
+~1 KB), and the exact part and target names as ``comment lidarsim-part <index> "<name>"`` /
+``comment lidarsim-target <index> "<name>"`` lines (the name as an ASCII JSON string: plyfile
+decodes headers as ASCII), so that ``part`` and ``target`` can be labelled with nothing but a
+PLY reader. The sidecar JSON holds the metadata too.
 Written chunk by chunk from NumPy structured arrays: the format is a header plus raw bytes.
 """
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
 
@@ -97,10 +99,11 @@ def _check_fits(column: str, values: np.ndarray, ply: str, out: str) -> None:
 def _names_comments(kind: str, names: list[str]) -> list[str]:
     lines = []
     for i, name in enumerate(names):
-        if any(c in name for c in "\r\n") or len(name) > 200:
-            raise OutputError(f"{kind} name {name!r} cannot go into a PLY header line",
+        text = json.dumps(name, ensure_ascii=True)
+        if len(text) > 400:
+            raise OutputError(f"{kind} name {name[:40]!r}... is too long for a PLY header line",
                               field=f"{kind}_names")
-        lines.append(f"comment lidarsim-{kind} {i} {name}")
+        lines.append(f"comment lidarsim-{kind} {i} {text}")
     return lines
 
 
@@ -121,7 +124,7 @@ class PlyExporter(Exporter):
         header.append(f"element vertex {len(points)}")
         header += [f"property {ply} {name}" for name, ply, _ in layout]
         header.append("end_header")
-        stream.write(("\n".join(header) + "\n").encode("utf-8"))
+        stream.write(("\n".join(header) + "\n").encode("ascii"))
         dtype = [(n, out) for n, _, out in layout]
         for chunk in points.iter_chunks([n for n, _, _ in layout]):
             data = np.empty(len(chunk["x"]), dtype=dtype)
