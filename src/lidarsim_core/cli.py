@@ -194,13 +194,15 @@ def simulate(scenario: Path = typer.Argument(..., help="Scenario file (YAML, TOM
              overwrite: bool = typer.Option(False, help="Replace existing output files."),
              backend: Optional[str] = typer.Option(None, help="Override the scenario's backend."),
              seed: Optional[int] = typer.Option(None, help="Override the scenario's seed."),
+             livox: bool = typer.Option(False, "--livox", help="With a .mcap bag: also write "
+                                        "livox_ros_driver2/msg/CustomMsg on /livox/lidar."),
              ) -> None:
-    """Simulate a scenario file and write the point cloud(s)."""
-    run_guarded(lambda: _simulate(scenario, out, frame, fmt, overwrite, backend, seed))
+    """Simulate a scenario file and write the point cloud(s), or one ROS 2 bag (.mcap)."""
+    run_guarded(lambda: _simulate(scenario, out, frame, fmt, overwrite, backend, seed, livox))
 
 
 def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwrite: bool,
-              backend: str | None, seed: int | None) -> None:
+              backend: str | None, seed: int | None, livox: bool = False) -> None:
     import os
 
     from .errors import ConfigError, OutputError
@@ -223,6 +225,10 @@ def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwri
         raise ConfigError(f"--frame {frame} is outside 0..{n_frames - 1}", source=path,
                           field="scan.frames")
     frames = [frame] if frame is not None else list(range(n_frames))
+    if out.suffix.lower() == ".mcap" or fmt == "mcap":  # every frame into one ROS 2 bag
+        from .cli_bag import simulate_to_bag
+
+        return simulate_to_bag(scenario, frames, out, overwrite=overwrite, livox=livox)
     templated = has_frame_field(out)
     if len(frames) > 1 and not templated:
         raise OutputError(f"the scenario has {len(frames)} frames: put '{{frame}}' in --out "
