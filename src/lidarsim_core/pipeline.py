@@ -37,6 +37,7 @@ import numpy as np
 from ._version import __version__
 from .backends.base import RayBackend
 from .beam import SubRays, sub_rays_for
+from .bodyframe import body_frame_columns
 from .builtin_sensors import get_sensor
 from .chunks import ordered_map, piece_size, rotate, split_range, to_body, worker_threads
 from .config_io import validate_model
@@ -486,7 +487,7 @@ class Simulation:
                                                          axes[0][pulse], axes[1][pulse]),
                               range_true)
         azimuth, elevation = az_el_from_directions(batch.direction[pulse])
-        return {
+        out = {
             "x": measured[:, 0], "y": measured[:, 1], "z": measured[:, 2],
             "x_true": true[:, 0], "y_true": true[:, 1], "z_true": true[:, 2],
             "range": range_measured, "range_true": range_true,
@@ -498,6 +499,9 @@ class Simulation:
             "intensity": cand.intensity[rows].astype(np.float32),
             "detected": flag.astype(np.uint8),
         }
+        if self.scenario.scan.body_frame_truth:  # optional columns (lidarsim_core.bodyframe)
+            out.update(body_frame_columns(self, out, t_frame))
+        return out
 
     def _noise(self, batch: RayBatch, contexts: list[NoiseContext], pulse: np.ndarray,
                direction: np.ndarray, range_true: np.ndarray, range_measured: np.ndarray,

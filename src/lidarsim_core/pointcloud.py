@@ -151,8 +151,12 @@ class PointCloud:
         """Join per-chunk column dictionaries into one cloud."""
         if not parts:
             return cls.empty(frame)
-        return cls({k: np.concatenate([p[k] for p in parts]).astype(v, copy=False)
-                    for k, v in POINT_FIELDS.items()}, frame)
+        columns = {k: np.concatenate([p[k] for p in parts]).astype(v, copy=False)
+                   for k, v in POINT_FIELDS.items()}
+        # further columns every chunk has (e.g. x_body...) are kept, in their order
+        columns.update({k: np.concatenate([p[k] for p in parts]) for k in parts[0]
+                        if k not in POINT_FIELDS and all(k in p for p in parts)})
+        return cls(columns, frame)
 
     def metadata_json(self) -> str:
         """The frame metadata as a compact JSON string."""
