@@ -196,13 +196,18 @@ def simulate(scenario: Path = typer.Argument(..., help="Scenario file (YAML, TOM
              seed: Optional[int] = typer.Option(None, help="Override the scenario's seed."),
              livox: bool = typer.Option(False, "--livox", help="With a .mcap bag: also write "
                                         "livox_ros_driver2/msg/CustomMsg on /livox/lidar."),
+             range_image: bool = typer.Option(False, "--range-image", help="Also write each "
+                                              "frame's organised range image: <name>.range.npz"
+                                              " and a 16-bit <name>.range.png."),
              ) -> None:
     """Simulate a scenario file and write the point cloud(s), or one ROS 2 bag (.mcap)."""
-    run_guarded(lambda: _simulate(scenario, out, frame, fmt, overwrite, backend, seed, livox))
+    run_guarded(lambda: _simulate(scenario, out, frame, fmt, overwrite, backend, seed, livox,
+                                  range_image))
 
 
 def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwrite: bool,
-              backend: str | None, seed: int | None, livox: bool = False) -> None:
+              backend: str | None, seed: int | None, livox: bool = False,
+              range_image: bool = False) -> None:
     import os
 
     from .errors import ConfigError, OutputError
@@ -246,6 +251,10 @@ def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwri
         if not os.access(parent, os.W_OK | os.X_OK):
             raise OutputError(f"output directory is not writable: {parent}", source=target)
     sim = Simulation(scenario)  # guards third-party components itself
+    if range_image:
+        from .rangeimage import check_layout
+
+        check_layout(sim.pattern)
     console = _console()
     for f, target in zip(frames, targets):
         t0 = time.perf_counter()
@@ -255,6 +264,10 @@ def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwri
             spool.extend(sim.iter_chunks(f))
             write_points_file(spool, target, exporter=exporter, overwrite=overwrite)
             points = len(spool)
+            if range_image:
+                from .rangeimage import save_range_image
+
+                save_range_image(spool.to_cloud(), sim.pattern, target, overwrite=overwrite)
         console.print(f"frame {f}: {points:,} points from {info.rays_emitted:,} rays "
                       f"in {time.perf_counter() - t0:.2f} s → {target}")
         if points == 0:
