@@ -233,7 +233,10 @@ def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwri
     if out.suffix.lower() == ".mcap" or fmt == "mcap":  # every frame into one ROS 2 bag
         from .cli_bag import simulate_to_bag
 
-        return simulate_to_bag(scenario, frames, out, overwrite=overwrite, livox=livox)
+        return simulate_to_bag(scenario, frames, out, overwrite=overwrite, livox=livox,
+                               range_image=range_image)
+    if livox:
+        raise OutputError("--livox applies to a ROS 2 bag (--out run.mcap)", source=out)
     templated = has_frame_field(out)
     if len(frames) > 1 and not templated:
         raise OutputError(f"the scenario has {len(frames)} frames: put '{{frame}}' in --out "

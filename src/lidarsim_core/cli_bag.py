@@ -14,11 +14,16 @@ if TYPE_CHECKING:
 
 
 def simulate_to_bag(scenario: "Scenario", frames: Sequence[int], out: Path, *,
-                    overwrite: bool, livox: bool) -> None:
+                    overwrite: bool, livox: bool, range_image: bool = False) -> None:
     """Simulate ``frames`` into the bag ``out`` with a progress bar, then say what was
     written."""
     from rich.console import Console
 
+    from .errors import OutputError
+
+    if range_image:
+        raise OutputError("--range-image writes beside per-frame cloud files, not into a bag",
+                          source=out)
     from .dataset.progress import FrameProgress
     from .io.rosbag import _rosbags, check_bag_output, write_bag
     from .pipeline import Simulation
