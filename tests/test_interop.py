@@ -105,8 +105,10 @@ def test_open3d_harness_reports_a_reader_abort(cloud, tmp_path):
     path.write_bytes(("ply\nformat binary_little_endian 1.0\n" + long_comment +
                       "\nelement vertex 1\nproperty double x\nproperty double y\n"
                       "property double z\nend_header\n").encode() + bytes(24))
-    proc, _ = _open3d_read(path, tmp_path)
-    assert proc.returncode != 0 and "Line too long" in proc.stdout + proc.stderr
+    proc, data = _open3d_read(path, tmp_path)
+    if proc.returncode == 0:  # an Open3D whose RPly takes long lines: nothing to catch
+        pytest.skip("this Open3D reads header lines over 1 KB")
+    assert "Line too long" in proc.stdout + proc.stderr and not data
 
 
 @needs_open3d
@@ -222,7 +224,10 @@ def test_las_class_lookup_holds_the_part_names_bytes(cloud, files):
 # ---- pandas and numpy -----------------------------------------------------------------------
 def test_csv_read_by_pandas(cloud, files):
     pandas = pytest.importorskip("pandas")
-    frame = pandas.read_csv(files["csv"], float_precision="round_trip")
+    # pandas 3 parses floats exactly by default; pandas 2 needs the round-trip parser
+    exact = {} if int(pandas.__version__.split(".")[0]) >= 3 else \
+        {"float_precision": "round_trip"}
+    frame = pandas.read_csv(files["csv"], **exact)
     assert list(frame.columns) == list(POINT_FIELDS)
     assert len(frame) == len(cloud)
     for name in POINT_FIELDS:
