@@ -64,8 +64,8 @@ def test_simulate_writes_ply_readable_by_plyfile(tmp_path):
     names = {p.name for p in vertex.properties}
     assert {"x", "y", "z", "x_true", "range", "timestamp", "part", "incidence_angle",
             "ray_index"} <= names
-    meta = [c for c in ply.comments if c.startswith("lidarsim-frame ")]
-    frame = json.loads(meta[0].split(" ", 1)[1])
+    frame = json.loads("".join(c.split(" ", 1)[1] for c in ply.comments
+                               if c.startswith("lidarsim-frame ")))
     assert frame["sensor"] == "livox-mid70-rose" and frame["seed"] == 1
     r = np.sqrt(vertex["x"] ** 2 + vertex["y"] ** 2 + vertex["z"] ** 2)
     np.testing.assert_allclose(r, vertex["range"], rtol=1e-12)

@@ -55,8 +55,8 @@ def test_ply_read_by_plyfile_has_every_field_and_metadata(cloud, tmp_path):
     assert vertex.count == len(cloud)
     for name in POINT_FIELDS:
         np.testing.assert_array_equal(vertex[name], cloud[name], err_msg=name)
-    meta = [c for c in ply.comments if c.startswith("lidarsim-frame ")]
-    assert json.loads(meta[0].split(" ", 1)[1]) == cloud.frame.to_dict()
+    meta = "".join(c.split(" ", 1)[1] for c in ply.comments if c.startswith("lidarsim-frame "))
+    assert json.loads(meta) == cloud.frame.to_dict()
 
 
 def test_npz_read_by_numpy(cloud, tmp_path):
@@ -93,10 +93,11 @@ def test_las_and_laz_read_by_laspy(cloud, tmp_path):
         extras = set(las.point_format.extra_dimension_names)
         expected = set(POINT_FIELDS) - {"x", "y", "z", "timestamp", "return_number",
                                         "number_of_returns", "part", "intensity"}
-        assert extras == expected
+        assert extras == expected | {"reflectivity"}  # + the exact float intensity
         for name in expected:
             assert las[name].dtype == np.dtype(POINT_FIELDS[name]), name
             np.testing.assert_array_equal(las[name], cloud[name], err_msg=name)
+        np.testing.assert_array_equal(las["reflectivity"], cloud["intensity"])
         vlrs = {(v.user_id, v.record_id): v for v in header.vlrs}
         frame = json.loads(bytes(vlrs[("lidarsim", 1)].record_data).decode())
         assert frame == cloud.frame.to_dict()
@@ -105,6 +106,8 @@ def test_las_and_laz_read_by_laspy(cloud, tmp_path):
             lookup = {c: n.rstrip(b"\0").decode() for c, n in struct.iter_unpack("<B15s", raw)}
             assert lookup == {64 + i: p.rsplit("/", 1)[-1][:15]
                               for i, p in enumerate(cloud.frame.part_names)}
+        names = bytes(vlrs[("lidarsim", 2)].record_data).decode().split("\n")
+        assert names == cloud.frame.part_names  # exact, whatever the lookup's 15 characters
         assert header.creation_date is None  # day/year 0: reruns give the same bytes
 
 
@@ -166,8 +169,10 @@ def test_pcd_header_follows_pcl_and_open3d_and_data_reads_back(cloud, tmp_path):
     np.testing.assert_array_equal(data["ring"], cloud["channel"])
     for name in set(POINT_FIELDS) - {"x", "y", "z", "part", "channel"}:
         np.testing.assert_array_equal(data[name], cloud[name], err_msg=name)
-    meta = [c for c in comments if c.startswith("# lidarsim-frame ")]
-    assert json.loads(meta[0][len("# lidarsim-frame "):]) == cloud.frame.to_dict()
+    meta = "".join(c[len("# lidarsim-frame "):] for c in comments
+                   if c.startswith("# lidarsim-frame "))
+    assert json.loads(meta) == cloud.frame.to_dict()
+    assert max(len(c) for c in comments) < 200  # Open3D reads header lines in 1 KB pieces
 
 
 def test_pcd_float64_option_keeps_full_precision(cloud, tmp_path):

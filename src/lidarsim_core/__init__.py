@@ -30,6 +30,7 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
     from .pointcloud import FrameInfo, PointCloud
     from .scenario import Scenario, load_scenario
     from .pipeline import Simulation, simulate
+    from .io.reader import read
 
 _LAZY: dict[str, str] = {
     "get_sensor": "builtin_sensors",
@@ -42,6 +43,7 @@ _LAZY: dict[str, str] = {
     "PointCloud": "pointcloud", "FrameInfo": "pointcloud",
     "Scenario": "scenario", "load_scenario": "scenario",
     "Simulation": "pipeline", "simulate": "pipeline",
+    "read": "io.reader",
 }
 
 __all__ = ["__version__", *sorted(_LAZY)]

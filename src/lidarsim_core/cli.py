@@ -194,13 +194,20 @@ def simulate(scenario: Path = typer.Argument(..., help="Scenario file (YAML, TOM
              overwrite: bool = typer.Option(False, help="Replace existing output files."),
              backend: Optional[str] = typer.Option(None, help="Override the scenario's backend."),
              seed: Optional[int] = typer.Option(None, help="Override the scenario's seed."),
+             livox: bool = typer.Option(False, "--livox", help="With a .mcap bag: also write "
+                                        "livox_ros_driver2/msg/CustomMsg on /livox/lidar."),
+             range_image: bool = typer.Option(False, "--range-image", help="Also write each "
+                                              "frame's organised range image: <name>.range.npz"
+                                              " and a 16-bit <name>.range.png."),
              ) -> None:
-    """Simulate a scenario file and write the point cloud(s)."""
-    run_guarded(lambda: _simulate(scenario, out, frame, fmt, overwrite, backend, seed))
+    """Simulate a scenario file and write the point cloud(s), or one ROS 2 bag (.mcap)."""
+    run_guarded(lambda: _simulate(scenario, out, frame, fmt, overwrite, backend, seed, livox,
+                                  range_image))
 
 
 def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwrite: bool,
-              backend: str | None, seed: int | None) -> None:
+              backend: str | None, seed: int | None, livox: bool = False,
+              range_image: bool = False) -> None:
     import os
 
     from .errors import ConfigError, OutputError
@@ -223,6 +230,13 @@ def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwri
         raise ConfigError(f"--frame {frame} is outside 0..{n_frames - 1}", source=path,
                           field="scan.frames")
     frames = [frame] if frame is not None else list(range(n_frames))
+    if out.suffix.lower() == ".mcap" or fmt == "mcap":  # every frame into one ROS 2 bag
+        from .cli_bag import simulate_to_bag
+
+        return simulate_to_bag(scenario, frames, out, overwrite=overwrite, livox=livox,
+                               range_image=range_image)
+    if livox:
+        raise OutputError("--livox applies to a ROS 2 bag (--out run.mcap)", source=out)
     templated = has_frame_field(out)
     if len(frames) > 1 and not templated:
         raise OutputError(f"the scenario has {len(frames)} frames: put '{{frame}}' in --out "
@@ -240,6 +254,10 @@ def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwri
         if not os.access(parent, os.W_OK | os.X_OK):
             raise OutputError(f"output directory is not writable: {parent}", source=target)
     sim = Simulation(scenario)  # guards third-party components itself
+    if range_image:
+        from .rangeimage import check_layout
+
+        check_layout(sim.pattern)
     console = _console()
     for f, target in zip(frames, targets):
         t0 = time.perf_counter()
@@ -249,6 +267,10 @@ def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwri
             spool.extend(sim.iter_chunks(f))
             write_points_file(spool, target, exporter=exporter, overwrite=overwrite)
             points = len(spool)
+            if range_image:
+                from .rangeimage import save_range_image
+
+                save_range_image(spool.to_cloud(), sim.pattern, target, overwrite=overwrite)
         console.print(f"frame {f}: {points:,} points from {info.rays_emitted:,} rays "
                       f"in {time.perf_counter() - t0:.2f} s → {target}")
         if points == 0:
@@ -338,7 +360,7 @@ def schema_scenario() -> None:
 
 #: Modules that add further commands to :data:`app` when imported (one module per command group).
 COMMAND_MODULES: tuple[str, ...] = ("cli_patterns", "cli_motion", "cli_bench", "cli_report",
-                                     "cli_dataset")
+                                     "cli_dataset", "cli_mesh", "cli_view")
 
 
 def _load_command_modules() -> None:

@@ -161,7 +161,7 @@ class PointCloud:
             return cls.empty(frame)
         columns = {k: np.concatenate([p[k] for p in parts]).astype(v, copy=False)
                    for k, v in POINT_FIELDS.items()}
-        # optional columns of switched-on stages (e.g. multipath's ``bounces``)
+        # optional columns every chunk has (multipath's ``bounces``, ``x_body``...), in order
         columns.update({k: np.concatenate([p[k] for p in parts]) for k in parts[0]
                         if k not in POINT_FIELDS and all(k in p for p in parts)})
         return cls(columns, frame)
@@ -178,6 +178,25 @@ class PointCloud:
         from .io.base import write_cloud
 
         return write_cloud(self, path, format=format, overwrite=overwrite)
+
+    def range_image(self, pattern: Any = None) -> Any:
+        """The organised range image of this frame (spinning, flash and raster sensors).
+
+        Parameters
+        ----------
+        pattern
+            The scan pattern that made the cloud (``Simulation(scenario).pattern``); default:
+            the catalogue sensor's pattern with its datasheet options.
+
+        Returns
+        -------
+        lidarsim_core.rangeimage.RangeImage
+            ``range``, ``intensity``, ``part`` and ``point_index`` arrays (NaN / -1 where
+            there is no return); ``.save(path)`` writes NPZ and a 16-bit PNG.
+        """
+        from .rangeimage import pattern_for_cloud, range_image
+
+        return range_image(self, pattern if pattern is not None else pattern_for_cloud(self))
 
     def summary(self) -> dict[str, Any]:
         """Counts and extents, for reports and the CLI."""

@@ -151,6 +151,9 @@ class ScanConfig(_Strict):
     motion: Literal["per_ray", "frozen"] = Field(
         "per_ray", description="'per_ray': every ray sees the poses at its own timestamp "
                                "(motion distortion); 'frozen': poses at frame start.")
+    body_frame_truth: bool = Field(
+        False, description="Add columns x_body, y_body, z_body: each noiseless point in its "
+                           "target's body frame at its own timestamp (the mesh's frame).")
 
     @model_validator(mode="after")
     def _sequence_timing(self) -> "ScanConfig":

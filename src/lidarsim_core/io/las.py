@@ -17,11 +17,17 @@ classification        64 + part (ASPRS classes 64..255 are user-definable), name
                       standard Classification Lookup VLR; a scene with more than 192 parts
                       writes class 1 (unclassified) and keeps ``part`` as extra bytes
 extra bytes           every other column under its own name and exact type (x_true, range,
-                      ray_index as int64, ...), described in the standard Extra Bytes VLR
+                      ray_index as int64, ...), described in the standard Extra Bytes VLR,
+                      and ``reflectivity``: the exact float32 ``intensity`` (the standard
+                      field clips it to 0..1 and rounds it to 1/65535)
 ====================  =================================================================
 
 The frame metadata (poses, sensor, seed, configuration hash...) is JSON in a VLR with user ID
-``lidarsim``, record ID 1 (an EVLR when it exceeds a VLR's 65,535 bytes). The project GUID is
+``lidarsim``, record ID 1 (an EVLR when it exceeds a VLR's 65,535 bytes). The lookup VLR
+holds 15 ASCII characters per class (and laspy's parser drops every character but letters,
+digits and spaces when it reads one: ``panel_right`` comes back as ``panelright``), so the
+exact part names are also in VLR ``lidarsim``/2 and the target names in ``lidarsim``/3, as
+UTF-8 text with one name per line (part *i* on line *i*, class 64 + *i*). The project GUID is
 derived from the configuration hash and the frame index; system identifier and generating
 software name lidarsim. The file creation day and year are written as 0 ("unknown"): a
 regenerated frame is identical to the bit.
@@ -54,6 +60,11 @@ _STANDARD = ("timestamp", "return_number", "number_of_returns", "intensity")
 #: VLR holding the frame metadata.
 METADATA_USER_ID = "lidarsim"
 METADATA_RECORD_ID = 1
+#: VLRs holding the exact part and target names, one per line.
+PART_NAMES_RECORD_ID = 2
+TARGET_NAMES_RECORD_ID = 3
+#: Extra-bytes column holding the exact float ``intensity``.
+EXACT_INTENSITY = "reflectivity"
 #: Classification of part 0; ASPRS reserves 0..63.
 CLASS_OFFSET = 64
 _MAX_VLR_BYTES = 65535
@@ -103,6 +114,12 @@ def _intensity_u16(values: np.ndarray) -> np.ndarray:
     return np.clip(values, 0, 65535).astype(np.uint16)
 
 
+def _exact_intensity(fields: dict[str, np.dtype]) -> bool:
+    # a float intensity loses range and precision in the standard u16 field
+    return ("intensity" in fields and np.dtype(fields["intensity"]).kind == "f"
+            and EXACT_INTENSITY not in fields)
+
+
 class LasExporter(Exporter):
     """LAS 1.4 point format 6: gps time, returns, class per part, the rest as extra bytes."""
 
@@ -124,9 +141,12 @@ class LasExporter(Exporter):
         header.uuid = uuid.uuid5(_GUID_NAMESPACE, f"{frame.config_hash}/{frame.frame}")
         header.global_encoding.wkt = True  # required for point formats 6..10
         extras = extra_columns(points.fields, frame.part_names)
-        header.add_extra_dims([laspy.ExtraBytesParams(name, points.fields[name],
-                                                      description=name[:32])
-                               for name in extras])
+        params = [laspy.ExtraBytesParams(name, points.fields[name], description=name[:32])
+                  for name in extras]
+        if _exact_intensity(points.fields):
+            params.append(laspy.ExtraBytesParams(EXACT_INTENSITY, np.float32,
+                                                 description="exact intensity"))
+        header.add_extra_dims(params)
         if classes_fit(frame.part_names):
             lookup = laspy.vlrs.known.ClassificationLookupVlr()
             for i, part in enumerate(frame.part_names):
@@ -136,6 +156,15 @@ class LasExporter(Exporter):
         vlr = laspy.VLR(user_id=METADATA_USER_ID, record_id=METADATA_RECORD_ID,
                         description="lidarsim frame metadata", record_data=blob)
         (header.vlrs if len(blob) <= _MAX_VLR_BYTES else header.evlrs).append(vlr)
+        for record_id, kind, names in ((PART_NAMES_RECORD_ID, "part", frame.part_names),
+                                       (TARGET_NAMES_RECORD_ID, "target", frame.target_names)):
+            if any("\n" in name for name in names):
+                raise OutputError(f"a {kind} name holds a line break, which LAS's name VLR "
+                                  "cannot hold", field=f"{kind}_names")
+            blob = "\n".join(names).encode("utf-8")
+            (header.vlrs if len(blob) <= _MAX_VLR_BYTES else header.evlrs).append(
+                laspy.VLR(user_id=METADATA_USER_ID, record_id=record_id,
+                          description=f"lidarsim {kind} names", record_data=blob))
         return header, extras
 
     def write_points(self, points: "PointSource", stream: IO[bytes]) -> None:
@@ -167,6 +196,8 @@ class LasExporter(Exporter):
                                             if with_part else np.ones(n, dtype=np.uint8))
                 if "intensity" in chunk:
                     record["intensity"] = _intensity_u16(chunk["intensity"])
+                    if _exact_intensity(fields):
+                        record[EXACT_INTENSITY] = chunk["intensity"]
                 for name in extras:
                     record[name] = chunk[name]
                 writer.write_points(record)
@@ -193,45 +224,66 @@ class LazExporter(LasExporter):
     compress = True
 
 
-def read_las(path: str | Path) -> "PointCloud":
-    """Read a LAS/LAZ file written by :class:`LasExporter` back into a point cloud.
+def read_las_columns(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str, Any] | None]:
+    """The point-record columns of a LAS/LAZ file written by :class:`LasExporter`, and its
+    frame metadata (``None`` without lidarsim's metadata VLR).
 
     x, y, z come back at the file's resolution (``scale_m``); ``part`` from the classification
-    (or the extra bytes), ``timestamp`` from the GPS time, the rest from the extra bytes.
-
-    Raises
-    ------
-    ConfigError
-        If the file lacks lidarsim's metadata VLR.
+    (or the extra bytes), ``timestamp`` from the GPS time, ``intensity`` from the exact
+    ``reflectivity`` extra bytes when there are some, the rest from the extra bytes.
     """
-    from ..pointcloud import POINT_FIELDS, FrameInfo, PointCloud
+    from ..pointcloud import POINT_FIELDS
 
     laspy = _laspy()
-    data = laspy.read(str(path))
+    try:
+        data = laspy.read(str(path))
+    except Exception as exc:  # laspy raises its own and many other types on bad files
+        raise ConfigError(f"cannot read LAS/LAZ: {type(exc).__name__}: {exc}",
+                          source=path) from None
     blob = None
     for vlr in [*data.header.vlrs, *data.header.evlrs]:
         if vlr.user_id == METADATA_USER_ID and vlr.record_id == METADATA_RECORD_ID:
             blob = vlr.record_data
-    if blob is None:
-        raise ConfigError("LAS file lacks lidarsim's metadata VLR", source=path)
-    frame = FrameInfo.from_dict(json.loads(bytes(blob).decode("utf-8")))
+    metadata = json.loads(bytes(blob).decode("utf-8")) if blob is not None else None
     columns: dict[str, np.ndarray] = {
         "x": np.asarray(data.x, dtype=np.float64), "y": np.asarray(data.y, dtype=np.float64),
         "z": np.asarray(data.z, dtype=np.float64),
         "timestamp": np.asarray(data.gps_time, dtype=np.float64),
         "return_number": np.asarray(data.return_number, dtype=np.uint8),
         "number_of_returns": np.asarray(data.number_of_returns, dtype=np.uint8)}
-    for name in data.point_format.extra_dimension_names:
-        columns[name] = np.asarray(data[name])
+    extras = list(data.point_format.extra_dimension_names)
+    for name in extras:
+        if name != EXACT_INTENSITY or "intensity" not in POINT_FIELDS:
+            columns[name] = np.asarray(data[name])
     if "intensity" in POINT_FIELDS:
-        raw = np.asarray(data.intensity)
-        kind = np.dtype(POINT_FIELDS["intensity"]).kind
-        columns["intensity"] = raw / 65535.0 if kind == "f" else raw
+        if EXACT_INTENSITY in extras:
+            columns["intensity"] = np.asarray(data[EXACT_INTENSITY])
+        else:
+            raw = np.asarray(data.intensity)
+            kind = np.dtype(POINT_FIELDS["intensity"]).kind
+            columns["intensity"] = raw / 65535.0 if kind == "f" else raw
     if "part" not in columns:
         columns["part"] = (np.asarray(data.classification, dtype=np.int64)
                            - CLASS_OFFSET).astype(np.int16)
     columns = {k: v.astype(POINT_FIELDS.get(k, v.dtype), copy=False) for k, v in columns.items()}
-    return PointCloud(columns, frame)
+    return columns, metadata
+
+
+def read_las(path: str | Path) -> "PointCloud":
+    """Read a LAS/LAZ file written by :class:`LasExporter` back into a point cloud
+    (see :func:`read_las_columns`).
+
+    Raises
+    ------
+    ConfigError
+        If the file lacks lidarsim's metadata VLR.
+    """
+    from ..pointcloud import FrameInfo, PointCloud
+
+    columns, metadata = read_las_columns(path)
+    if metadata is None:
+        raise ConfigError("LAS file lacks lidarsim's metadata VLR", source=path)
+    return PointCloud(columns, FrameInfo.from_dict(metadata))
 
 
 @hookimpl

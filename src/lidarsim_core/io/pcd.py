@@ -17,14 +17,14 @@ face_index         face_index (I 4)        32-bit (larger values are an error)
 every other column its own name            same type (F 8, U 1, I 2, ...)
 =================  ======================  ==============================================
 
-The frame metadata is a header comment ``# lidarsim-frame {json}`` (PCL and Open3D skip lines
-starting with ``#``). Points are in the sensor frame, so ``VIEWPOINT`` is the identity.
+The frame metadata is in header comments ``# lidarsim-frame <piece>`` of under 200 characters
+(:mod:`lidarsim_core.io.headermeta`; PCL and Open3D skip lines starting with ``#``, and
+Open3D reads header lines in 1 KB pieces). Points are in the sensor frame, so ``VIEWPOINT`` is the identity.
 :func:`read_pcd` reads the files back into point-record columns.
 """
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any, Literal
 
@@ -35,6 +35,7 @@ from ..components import ComponentOptions
 from ..errors import ConfigError, OutputError
 from ..hookspecs import hookimpl
 from .base import Exporter
+from .headermeta import metadata_from_lines, metadata_lines
 
 if TYPE_CHECKING:
     from ..pointcloud import PointCloud
@@ -75,9 +76,11 @@ def pcd_layout(fields: dict[str, np.dtype], xyz_dtype: str = "float32"
     return layout
 
 
-def pcd_header(layout: list[tuple[str, str, np.dtype]], count: int, metadata_json: str) -> str:
+def pcd_header(layout: list[tuple[str, str, np.dtype]], count: int,
+               metadata: dict[str, Any]) -> str:
     """The ASCII header of a binary PCD v0.7 file."""
-    lines = ["# .PCD v0.7 - Point Cloud Data file format", _METADATA_PREFIX + metadata_json,
+    lines = ["# .PCD v0.7 - Point Cloud Data file format",
+             *metadata_lines(metadata, _METADATA_PREFIX),
              "VERSION 0.7",
              "FIELDS " + " ".join(name for _, name, _ in layout),
              "SIZE " + " ".join(str(dt.itemsize) for _, _, dt in layout),
@@ -106,7 +109,7 @@ class PcdExporter(Exporter):
 
     def write_points(self, points: "PointSource", stream: IO[bytes]) -> None:
         layout = pcd_layout(points.fields, self.options.xyz_dtype)
-        stream.write(pcd_header(layout, len(points), points.metadata_json()).encode("utf-8"))
+        stream.write(pcd_header(layout, len(points), points.frame.to_dict()).encode("ascii"))
         record = np.dtype([(name, out) for _, name, out in layout])
         for chunk in points.iter_chunks([column for column, _, _ in layout]):
             data = np.empty(len(chunk["x"]), dtype=record)
@@ -116,49 +119,70 @@ class PcdExporter(Exporter):
             stream.write(data.tobytes())
 
 
-def read_pcd(path: str | Path) -> "PointCloud":
-    """Read a binary PCD written by :class:`PcdExporter` back into a point cloud.
+def read_pcd_columns(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str, Any] | None]:
+    """The fields of a binary PCD as point-record columns, and its lidarsim frame metadata
+    (``None`` when the header has none).
 
     PCD field names are mapped back to point-record columns (``label`` → ``part``, ``ring`` →
-    ``channel``) with the record's dtypes; x, y, z are as precise as the file.
+    ``channel``) and cast to the record's dtypes; x, y, z are as precise as the file.
 
     Raises
     ------
     ConfigError
-        If the file is not a binary PCD with lidarsim frame metadata.
+        If the file is not a binary PCD.
     """
-    from ..pointcloud import POINT_FIELDS, FrameInfo, PointCloud
+    from ..pointcloud import POINT_FIELDS
 
     path = Path(path)
     header: dict[str, list[str]] = {}
-    metadata: dict[str, Any] | None = None
+    comments: list[str] = []
     with open(path, "rb") as stream:
         while True:
             raw = stream.readline()
             if not raw:
                 raise ConfigError("PCD header has no DATA line", source=path)
-            line = raw.decode("utf-8").rstrip("\n")
-            if line.startswith(_METADATA_PREFIX):
-                metadata = json.loads(line[len(_METADATA_PREFIX):])
-            elif line and not line.startswith("#"):
+            line = raw.decode("utf-8", errors="replace").rstrip("\r\n")
+            if line.startswith("#"):
+                comments.append(line)
+            elif line.strip():
                 key, *values = line.split()
                 header[key] = values
                 if key == "DATA":
                     break
         if header["DATA"] != ["binary"]:
             raise ConfigError(f"PCD DATA is {' '.join(header['DATA'])}, not binary", source=path)
-        if metadata is None:
-            raise ConfigError("PCD file lacks the lidarsim-frame comment", source=path)
-        count = int(header["POINTS"][0])
-        kinds = {"F": "f", "I": "i", "U": "u"}
-        dtype = np.dtype([(name, f"<{kinds[t]}{s}") for name, t, s in
-                          zip(header["FIELDS"], header["TYPE"], header["SIZE"])])
-        data = np.frombuffer(stream.read(count * dtype.itemsize), dtype=dtype, count=count)
+        try:
+            count = int(header["POINTS"][0])
+            kinds = {"F": "f", "I": "i", "U": "u"}
+            dtype = np.dtype([(name, f"<{kinds[t]}{s}") for name, t, s in
+                              zip(header["FIELDS"], header["TYPE"], header["SIZE"])])
+        except (KeyError, IndexError, ValueError, TypeError) as exc:
+            raise ConfigError(f"PCD header is incomplete or malformed ({exc})",
+                              source=path) from None
+        data = np.frombuffer(stream.read(count * dtype.itemsize), dtype=dtype)
+    if len(data) != count:
+        raise ConfigError(f"PCD file is truncated: {len(data)} of {count} points", source=path)
     back = {pcd: column for column, pcd in PCD_NAMES.items()}
     columns = {}
     for name in dtype.names or ():
         column = back.get(name, name)
         columns[column] = data[name].astype(POINT_FIELDS.get(column, data[name].dtype))
+    return columns, metadata_from_lines(comments, _METADATA_PREFIX)
+
+
+def read_pcd(path: str | Path) -> "PointCloud":
+    """Read a binary PCD written by :class:`PcdExporter` back into a point cloud.
+
+    Raises
+    ------
+    ConfigError
+        If the file is not a binary PCD with lidarsim frame metadata.
+    """
+    from ..pointcloud import FrameInfo, PointCloud
+
+    columns, metadata = read_pcd_columns(path)
+    if metadata is None:
+        raise ConfigError("PCD file lacks the lidarsim-frame comment", source=path)
     return PointCloud(columns, FrameInfo.from_dict(metadata))
 
 

@@ -1,68 +1,193 @@
 """Built-in plugin: binary little-endian PLY with every point-record column as a property.
 
-Frame metadata goes into ``comment lidarsim-frame {json}`` header lines (one JSON object on one
-line), readable by any PLY reader that exposes comments (plyfile, Open3D ignores them safely).
+Property types are the ones every common PLY reader takes: Open3D's tensor reader (which
+skips ``char``, ``short``, ``ushort`` and ``uint`` properties as "unsupported datatype"), its
+legacy reader and CloudCompare (both RPly), plyfile and trimesh all accept ``uchar``, ``int``,
+``float`` and ``double``:
+
+=======================  =========  ===================================================
+record dtype             PLY type   columns
+=======================  =========  ===================================================
+float64                  double     x, y, z, x_true..., range, timestamp, ...
+float32                  float      intensity
+uint8 / bool             uchar      return_number, number_of_returns, detected
+int8, int16, uint16,     int        channel, target, part; and face_index (int64 in the
+int32                               record; a triangle index beyond int32 is an error
+                                    that suggests ``.npz``)
+uint32, int64, uint64    double     ray_index (and any other 64-bit integer column):
+                                    exact for integers below 2**53
+=======================  =========  ===================================================
+
+The frame metadata is in the header as ``comment lidarsim-frame <piece>`` lines of under 200
+characters (:mod:`lidarsim_core.io.headermeta`; RPly aborts the process on a header line over
+~1 KB), and the exact part and target names as ``comment lidarsim-part <index> "<name>"`` /
+``comment lidarsim-target <index> "<name>"`` lines (the name as an ASCII JSON string: plyfile
+decodes headers as ASCII), so that ``part`` and ``target`` can be labelled with nothing but a
+PLY reader. The sidecar JSON holds the metadata too.
 Written chunk by chunk from NumPy structured arrays: the format is a header plus raw bytes.
 """
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..errors import OutputError
+from ..errors import ConfigError, OutputError
 from ..hookspecs import hookimpl
-from ..pointcloud import POINT_FIELDS
 from .base import Exporter
+from .headermeta import metadata_from_lines, metadata_lines
 
 if TYPE_CHECKING:
+    from ..pointcloud import PointCloud
     from .points import PointSource
 
-#: NumPy dtype → (PLY type name, little-endian dtype written). PLY has no 64-bit integers.
-_PLY_TYPES: dict[str, tuple[str, str]] = {
-    "f8": ("double", "<f8"), "f4": ("float", "<f4"), "u1": ("uchar", "u1"),
-    "i2": ("short", "<i2"), "i8": ("int", "<i4"),
-}
-_RAY_INDEX_TYPE = ("uint", "<u4")  # ray indices are non-negative and may exceed 2**31
+#: Prefix of the header comments holding the frame metadata.
+METADATA_PREFIX = "lidarsim-frame "
+#: Integer columns written as ``double`` hold exact integers up to this magnitude.
+_EXACT_DOUBLE = 2 ** 53
+#: Columns whose PLY type is fixed whatever their record dtype (triangle indices fit int32).
+_FIXED_TYPES: dict[str, tuple[str, str]] = {"face_index": ("int", "<i4")}
+#: ``(PLY type, little-endian dtype)`` of every PLY type a file may hold.
+PLY_TYPES: dict[str, str] = {"char": "i1", "uchar": "u1", "short": "<i2", "ushort": "<u2",
+                             "int": "<i4", "uint": "<u4", "float": "<f4", "double": "<f8",
+                             "int8": "i1", "uint8": "u1", "int16": "<i2", "uint16": "<u2",
+                             "int32": "<i4", "uint32": "<u4", "float32": "<f4",
+                             "float64": "<f8"}
 
 
-def ply_layout() -> list[tuple[str, str, str]]:
-    """``(column, PLY type, written dtype)`` for every point-record column."""
-    layout = []
-    for name, dtype in POINT_FIELDS.items():
-        ply_type, out = _RAY_INDEX_TYPE if name == "ray_index" else _PLY_TYPES[dtype]
-        layout.append((name, ply_type, out))
-    return layout
+def ply_type(dtype: np.dtype | str) -> tuple[str, str]:
+    """``(PLY type, written dtype)`` for a column of NumPy ``dtype`` (see the module table)."""
+    dtype = np.dtype(dtype)
+    if dtype.kind == "f":
+        return ("float", "<f4") if dtype.itemsize <= 4 else ("double", "<f8")
+    if dtype.kind == "b" or (dtype.kind == "u" and dtype.itemsize == 1):
+        return "uchar", "u1"
+    if dtype.kind in "iu" and (dtype.itemsize < 4 or (dtype.kind == "i" and dtype.itemsize == 4)):
+        return "int", "<i4"
+    if dtype.kind in "iu":
+        return "double", "<f8"
+    raise OutputError(f"a column of type {dtype} has no PLY type; use .npz")
+
+
+def ply_layout(fields: dict[str, np.dtype] | None = None) -> list[tuple[str, str, str]]:
+    """``(column, PLY type, written dtype)`` for every column (default: the point record)."""
+    if fields is None:
+        from ..pointcloud import POINT_FIELDS
+
+        fields = {k: np.dtype(v) for k, v in POINT_FIELDS.items()}
+    return [(name, *_FIXED_TYPES.get(name, ply_type(dtype))) for name, dtype in fields.items()]
+
+
+def _check_fits(column: str, values: np.ndarray, ply: str, out: str) -> None:
+    if not len(values) or values.dtype.kind not in "iu":
+        return
+    lo, hi = int(values.min()), int(values.max())
+    if ply == "double":
+        if max(abs(lo), abs(hi)) >= _EXACT_DOUBLE:
+            raise OutputError(f"column '{column}' has integers beyond 2**53, which PLY's "
+                              "double cannot hold exactly; use .npz", field=column)
+        return
+    info = np.iinfo(out)
+    if lo < info.min or hi > info.max:
+        raise OutputError(f"column '{column}' does not fit PLY type {ply}; use .npz",
+                          field=column)
+
+
+def _names_comments(kind: str, names: list[str]) -> list[str]:
+    lines = []
+    for i, name in enumerate(names):
+        text = json.dumps(name, ensure_ascii=True)
+        if len(text) > 400:
+            raise OutputError(f"{kind} name {name[:40]!r}... is too long for a PLY header line",
+                              field=f"{kind}_names")
+        lines.append(f"comment lidarsim-{kind} {i} {text}")
+    return lines
 
 
 class PlyExporter(Exporter):
-    """Binary PLY with all point-record fields as vertex properties and metadata in comments."""
+    """Binary PLY with every column as a vertex property and metadata in short comments."""
 
     name = "ply"
     suffixes = (".ply",)
 
     def write_points(self, points: "PointSource", stream: IO[bytes]) -> None:
-        layout = ply_layout()
-        header = ["ply", "format binary_little_endian 1.0",
-                  "comment generated by lidarsim",
-                  f"comment lidarsim-frame {points.metadata_json()}",
-                  f"element vertex {len(points)}"]
-        header += [f"property {ply_type} {name}" for name, ply_type, _ in layout]
+        layout = ply_layout(points.fields)
+        frame = points.frame
+        header = ["ply", "format binary_little_endian 1.0", "comment generated by lidarsim"]
+        header += ["comment " + line
+                   for line in metadata_lines(frame.to_dict(), METADATA_PREFIX)]
+        header += _names_comments("part", frame.part_names)
+        header += _names_comments("target", frame.target_names)
+        header.append(f"element vertex {len(points)}")
+        header += [f"property {ply} {name}" for name, ply, _ in layout]
         header.append("end_header")
-        stream.write(("\n".join(header) + "\n").encode("utf-8"))
+        stream.write(("\n".join(header) + "\n").encode("ascii"))
         dtype = [(n, out) for n, _, out in layout]
         for chunk in points.iter_chunks([n for n, _, _ in layout]):
             data = np.empty(len(chunk["x"]), dtype=dtype)
-            for column, _, out in layout:
-                values = chunk[column]
-                info = np.iinfo(out) if np.dtype(out).kind in "iu" else None
-                if info is not None and len(values) and (values.min() < info.min or
-                                                         values.max() > info.max):
-                    raise OutputError(f"column '{column}' does not fit PLY type {out}; use .npz",
-                                      field=column)
-                data[column] = values
+            for column, ply, out in layout:
+                _check_fits(column, chunk[column], ply, out)
+                data[column] = chunk[column]
             stream.write(data.tobytes())
+
+
+def read_ply_columns(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str, Any] | None]:
+    """The vertex properties of a binary little-endian PLY point cloud and its lidarsim
+    frame metadata (``None`` when the header has none).
+
+    Raises
+    ------
+    ConfigError
+        If the file is not a binary little-endian PLY with one vertex element of scalars.
+    """
+    path = Path(path)
+    comments: list[str] = []
+    props: list[tuple[str, str]] = []
+    count, fmt, element = None, None, None
+    with open(path, "rb") as stream:
+        if stream.readline().strip() != b"ply":
+            raise ConfigError("not a PLY file (no 'ply' magic line)", source=path)
+        while True:
+            raw = stream.readline()
+            if not raw:
+                raise ConfigError("PLY header has no end_header line", source=path)
+            line = raw.decode("utf-8", errors="replace").rstrip("\r\n")
+            words = line.split()
+            if not words:
+                continue
+            if words[0] == "end_header":
+                break
+            if words[0] == "comment":
+                comments.append(line[len("comment "):])
+            elif words[0] == "format":
+                fmt = words[1:2]
+            elif words[0] == "element":
+                element = words[1]
+                if element == "vertex":
+                    count = int(words[2])
+                elif int(words[2]) != 0:
+                    raise ConfigError(f"PLY element '{element}' is not supported (only a "
+                                      "vertex element)", source=path)
+            elif words[0] == "property" and element == "vertex":
+                if words[1] == "list" or words[1] not in PLY_TYPES:
+                    raise ConfigError(f"PLY property '{' '.join(words[1:])}' is not a scalar "
+                                      "of a known type", source=path, field=words[-1])
+                props.append((words[2], PLY_TYPES[words[1]]))
+        if fmt != ["binary_little_endian"]:
+            raise ConfigError(f"PLY format {' '.join(fmt or ['(none)'])} is not "
+                              "binary_little_endian", source=path)
+        if count is None:
+            raise ConfigError("PLY file has no vertex element", source=path)
+        dtype = np.dtype(props)
+        data = np.frombuffer(stream.read(count * dtype.itemsize), dtype=dtype)
+    if len(data) != count:
+        raise ConfigError(f"PLY file is truncated: {len(data)} of {count} vertices",
+                          source=path)
+    columns = {name: np.array(data[name]) for name in dtype.names or ()}
+    return columns, metadata_from_lines(comments, METADATA_PREFIX)
 
 
 @hookimpl

@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..bodyframe import body_frame_columns
 from ..patterns.geometry import az_el_from_directions
 from ..vec3 import scale_rows
 from .base import Piece
@@ -50,4 +51,7 @@ def record_columns(sim: "Simulation", piece: Piece) -> dict[str, np.ndarray]:
     if cand.bounces is not None:
         columns["bounces"] = cand.bounces[rows]
     columns.update(piece.extra)
+    if sim.scenario.scan.body_frame_truth:  # optional columns (lidarsim_core.bodyframe)
+        t_frame = sim.scenario.scan.frame_interval(piece.frame)[0]
+        columns.update(body_frame_columns(sim, columns, t_frame))
     return columns
