@@ -39,6 +39,7 @@ from . import kernels
 from .mesh import Mesh
 from .noise.outliers import SpuriousReturnModel
 from .patterns.base import RayBatch
+from .posing import piece_poses
 from .rng import MAX_ABS_NORMAL
 
 if TYPE_CHECKING:
@@ -89,13 +90,13 @@ class PulseCuller:
         """Rows of ``batch`` whose pulses may reach a target (int64, ascending)."""
         from .kernels.cull import cull_by_grid, cull_pulses
 
-        sensor = sim._chunk_poses(sim.sensor_trajectory, batch.t, t_frame)
-        sensor_rotation = sensor.rotation.as_matrix().reshape(-1, 3, 3)
+        posed = piece_poses(sim, batch, t_frame)
+        sensor = posed.sensor
+        sensor_rotation = sensor.matrix
         rotations, origins, grows, trees, roots = [], [], [], [], []
         nodes = 0
-        for target in sim.targets:
-            poses = sim._chunk_poses(target.trajectory, batch.t, t_frame)
-            to_body = poses.rotation.as_matrix().reshape(-1, 3, 3).transpose(0, 2, 1)
+        for target, poses in zip(sim.targets, posed.targets):
+            to_body = poses.matrix.transpose(0, 2, 1)
             rotations.append(to_body @ sensor_rotation)
             origin = (to_body @ (sensor.position - poses.position)[..., None])[..., 0]
             origins.append(origin)

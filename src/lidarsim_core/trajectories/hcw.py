@@ -54,6 +54,7 @@ from ..config_io import validate_model
 from ..errors import ConfigError
 from ..hookspecs import hookimpl
 from ..poses import Poses
+from ..posing import PoseMatrices
 from .attitude import AttitudeConfig, LookAtAttitude
 from .base import Trajectory
 from .orbit import OrbitConfig, hcw_propagate
@@ -253,6 +254,10 @@ class HCWTrajectory(Trajectory):
     def poses_at(self, t: np.ndarray) -> Poses:
         position, _ = self.states_at(t)
         return Poses(position, self.options.attitude.rotations(position))
+
+    def pose_matrices(self, t: np.ndarray) -> PoseMatrices:
+        position, _ = self.states_at(t)
+        return PoseMatrices(position, self.options.attitude.matrices(position))
 
 
 @hookimpl
