@@ -77,7 +77,7 @@ def test_closed_forms_agree_with_the_scipy_path_to_1e12_m(name):
     np.testing.assert_allclose(eye, np.broadcast_to(np.eye(3), eye.shape), atol=1e-14)
 
 
-def test_compiled_chain_gives_the_numpy_bits():
+def test_compiled_chain_is_within_a_few_ulp_of_numpy():
     pytest.importorskip("numba")
     from lidarsim_core.kernels.poses import chain_matrices
 
@@ -85,8 +85,9 @@ def test_compiled_chain_gives_the_numpy_bits():
     chain = trajectory._chain
     assert len(chain.rates) == 2
     tau = np.random.default_rng(1).uniform(-100, 100, 10_000)
-    np.testing.assert_array_equal(chain_matrices(tau, chain.fixed, chain.axes, chain.rates),
-                                  chain.matrices_numpy(tau))
+    compiled = chain_matrices(tau, chain.fixed, chain.axes, chain.rates)
+    reference = chain.matrices_numpy(tau)
+    assert np.abs(compiled - reference).max() <= 8 * np.finfo(float).eps
 
 
 def test_chain_composes_in_order_against_scipy():

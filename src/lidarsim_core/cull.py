@@ -88,44 +88,43 @@ class PulseCuller:
 
     def keep(self, sim: "Simulation", batch: RayBatch, t_frame: float) -> np.ndarray:
         """Rows of ``batch`` whose pulses may reach a target (int64, ascending)."""
-        from .kernels.cull import cull_by_grid, cull_pulses
+        from .kernels.cull import cull_by_grid, cull_posed
 
         posed = piece_poses(sim, batch, t_frame)
-        sensor = posed.sensor
-        sensor_rotation = sensor.matrix
-        rotations, origins, grows, trees, roots = [], [], [], [], []
-        nodes = 0
-        for target, poses in zip(sim.targets, posed.targets):
-            to_body = poses.matrix.transpose(0, 2, 1)
-            rotations.append(to_body @ sensor_rotation)
-            origin = (to_body @ (sensor.position - poses.position)[..., None])[..., 0]
-            origins.append(origin)
-            lo, hi, child = cull_tree(target.mesh)
+        trees = [cull_tree(target.mesh) for target in sim.targets]
+        roots = np.cumsum([0] + [len(lo) for lo, _, _ in trees])[:-1]
+        directions = np.ascontiguousarray(batch.direction, dtype=np.float64)
+        if max(len(posed.sensor), *(len(p) for p in posed.targets)) > 1:
+            # poses per pulse: the frame changes are made per pulse in the kernel
+            moving = np.array([len(p) > 1 for p in posed.targets])
+            first = np.cumsum([0] + [len(p) for p in posed.targets])[:-1]
+            return cull_posed(
+                directions, posed.sensor.matrix, posed.sensor.position,
+                np.ascontiguousarray(np.concatenate([p.matrix for p in posed.targets])),
+                np.ascontiguousarray(np.concatenate([p.position for p in posed.targets])),
+                first, moving, np.concatenate([t[0] for t in trees]),
+                np.concatenate([t[1] for t in trees]),
+                np.concatenate([np.where(t[2] >= 0, t[2] + root, -1)
+                                for t, root in zip(trees, roots)]),
+                roots, self.margin_rad)
+        # one pose for the piece: look the directions up in a cube map
+        sensor_rotation = posed.sensor.matrix[0]
+        rotations, origins, grows = [], [], []
+        for poses, (lo, hi, _) in zip(posed.targets, trees):
+            to_body = poses.matrix[0].T
+            rotations.append((to_body @ sensor_rotation)[None])
+            origin = to_body @ (posed.sensor.position[0] - poses.position[0])
+            origins.append(origin[None])
             # farthest corner of the target's box from the origin: the chord between two rays
             # at angle a is below s·a for every distance s up to it; the last terms cover the
             # rounding of the box test itself
             far = np.sqrt((np.maximum(np.abs(lo[0] - origin), np.abs(hi[0] - origin)) ** 2
-                           ).sum(axis=1))
-            grows.append(far * (self.margin_rad + 1e-9) + 1e-9)
-            trees.append((lo, hi, np.where(child >= 0, child + nodes, -1)))
-            roots.append(nodes)
-            nodes += len(lo)
-        m = max(len(r) for r in rotations)
-        directions = np.ascontiguousarray(batch.direction, dtype=np.float64)
-        if m == 1:  # one pose for the piece: look the directions up in a cube map
-            grid = self._grid(rotations, origins, grows, trees)
-            if grid is None:  # the sensor is inside a target's box: nothing to cull
-                return np.arange(len(batch), dtype=np.int64)
-            return cull_by_grid(directions, grid)
-        return cull_pulses(directions,
-                           np.ascontiguousarray([np.broadcast_to(r, (m, 3, 3))
-                                                 for r in rotations]),
-                           np.ascontiguousarray([np.broadcast_to(o, (m, 3)) for o in origins]),
-                           np.ascontiguousarray([np.broadcast_to(g, (m,)) for g in grows]),
-                           np.concatenate([t[0] for t in trees]),
-                           np.concatenate([t[1] for t in trees]),
-                           np.concatenate([t[2] for t in trees]), np.array(roots, dtype=np.int64))
-
+                           ).sum())
+            grows.append(np.array([far * (self.margin_rad + 1e-9) + 1e-9]))
+        grid = self._grid(rotations, origins, grows, trees)
+        if grid is None:  # the sensor is inside a target's box: nothing to cull
+            return np.arange(len(batch), dtype=np.int64)
+        return cull_by_grid(directions, grid)
 
     def _grid(self, rotations: list[np.ndarray], origins: list[np.ndarray],
               grows: list[np.ndarray], trees: list[tuple[np.ndarray, ...]]

@@ -209,9 +209,18 @@ def piece_poses(sim: "Simulation", batch: "RayBatch", t_frame: float) -> PiecePo
     attached = batch.poses
     if isinstance(attached, PiecePoses):
         return attached
-    return PiecePoses(sim._chunk_poses(sim.sensor_trajectory, batch.t, t_frame),
-                      tuple(sim._chunk_poses(target.trajectory, batch.t, t_frame)
+    return PiecePoses(_shared(sim._chunk_poses(sim.sensor_trajectory, batch.t, t_frame)),
+                      tuple(_shared(sim._chunk_poses(target.trajectory, batch.t, t_frame))
                             for target in sim.targets))
+
+
+def _shared(poses: PoseMatrices) -> PoseMatrices:
+    """One pose when every ray has the same (a chaser holding its station): the frame changes
+    then use one matrix for every ray, with the same bits (:func:`lidarsim_core.chunks.rotate`)."""
+    if len(poses) > 1 and bool((poses.position == poses.position[0]).all()) and \
+            bool((poses.matrix == poses.matrix[0]).all()):
+        return PoseMatrices(poses.position[:1], poses.matrix[:1])
+    return poses
 
 
 def with_piece_poses(sim: "Simulation", batch: "RayBatch", t_frame: float) -> "RayBatch":

@@ -11,6 +11,8 @@ loops instead:
   the ray), the same arithmetic in the same order as the NumPy code;
 * :mod:`.trig` and :mod:`.rose`: the rose pattern with a sine and cosine that LLVM can inline
   (within 2 ulp of the C library's);
+* :mod:`.poses`: per-ray rotations of the built-in trajectories (chains of rotations at
+  constant rates: tumbling, constant angular velocity);
 * :mod:`.cull`: a conservative test that skips pulses which cannot reach any target's
   bounding box, even after their angular error and beam divergence, before anything else is
   computed for them.
@@ -76,7 +78,8 @@ def warm_up() -> bool:
         return False
     import numpy as np
 
-    from .cull import cull_pulses
+    from .cull import cull_posed
+    from .poses import chain_matrices
     from .philox import ray_uniforms
     from .raycast import embree_rays, refine_hits
     from .rose import rose_directions
@@ -92,8 +95,10 @@ def warm_up() -> bool:
     refine_hits(np.full(1, -1, dtype=np.int32), one, one, one, one, 1e-6,
                 np.empty(1, dtype=np.int64), np.empty(1), np.empty((1, 3)), 0)
     box = np.array([[-1.0, -1.0, -1.0]])
-    cull_pulses(one, np.eye(3)[None, None], one[None], np.zeros((1, 1)), box, -box,
-                np.full(1, -1, dtype=np.int64), index)
+    cull_posed(one, np.eye(3)[None], one, np.eye(3)[None], one, index,
+               np.zeros(1, dtype=np.bool_), box, -box, np.full(1, -1, dtype=np.int64), index,
+               0.0)
+    chain_matrices(np.zeros(1), np.array([[0.0, 0.0, 0.0, 1.0]] * 2), one, np.ones(1))
     return True
 
 

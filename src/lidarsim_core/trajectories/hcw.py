@@ -234,9 +234,10 @@ class HCWTrajectory(Trajectory):
         which = np.searchsorted(self._starts, t, side="right") - 1
         pos = np.empty((len(t), 3))
         vel = np.empty((len(t), 3))
-        for k in np.unique(which):
+        one = len(t) > 0 and which[0] == which[-1] and bool((which == which[0]).all())
+        for k in (which[:1] if one else np.unique(which)):
             piece = self._pieces[k]
-            sel = which == k
+            sel = slice(None) if one else which == k  # usually every time in one piece
             anchor = piece.t1 if piece.t0 == -math.inf else piece.t0
             tau = t[sel] - anchor
             if piece.kind == "natural":
@@ -257,6 +258,10 @@ class HCWTrajectory(Trajectory):
 
     def pose_matrices(self, t: np.ndarray) -> PoseMatrices:
         position, _ = self.states_at(t)
+        if len(position) > 1 and bool((position == position[0]).all()):
+            # a hold: one position, so one attitude (the same bits as one per ray)
+            matrix = self.options.attitude.matrices(position[:1])
+            return PoseMatrices(position, np.repeat(matrix, len(position), axis=0))
         return PoseMatrices(position, self.options.attitude.matrices(position))
 
 

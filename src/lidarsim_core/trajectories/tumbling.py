@@ -118,7 +118,11 @@ class _RigidBodyTrajectory(Trajectory):
     def pose_matrices(self, t: np.ndarray) -> PoseMatrices:
         tau = np.atleast_1d(np.asarray(t, dtype=np.float64)) - self.options.t_ref_s
         matrix = self.scene_matrices(tau)
-        return PoseMatrices(self._p - matrix @ self._com, matrix)
+        if not self._com.any():  # p - R·0 is p, bit for bit
+            return PoseMatrices(np.repeat(self._p[None, :], len(tau), axis=0), matrix)
+        c = self._com
+        turned = matrix[:, :, 0] * c[0] + matrix[:, :, 1] * c[1] + matrix[:, :, 2] * c[2]
+        return PoseMatrices(self._p - turned, matrix)
 
     def _lvlh_link(self) -> list[tuple[np.ndarray, float]]:
         """The LVLH frame's turn relative to inertial space, as a chain link (or none)."""
