@@ -217,7 +217,8 @@ def piece_poses(sim: "Simulation", batch: "RayBatch", t_frame: float) -> PiecePo
 def _shared(poses: PoseMatrices) -> PoseMatrices:
     """One pose when every ray has the same (a chaser holding its station): the frame changes
     then use one matrix for every ray, with the same bits (:func:`lidarsim_core.chunks.rotate`)."""
-    if len(poses) > 1 and bool((poses.position == poses.position[0]).all()) and \
+    if len(poses) > 1 and bool((poses.matrix[-1] == poses.matrix[0]).all()) and \
+            bool((poses.position == poses.position[0]).all()) and \
             bool((poses.matrix == poses.matrix[0]).all()):
         return PoseMatrices(poses.position[:1], poses.matrix[:1])
     return poses

@@ -242,6 +242,8 @@ class HCWTrajectory(Trajectory):
             tau = t[sel] - anchor
             if piece.kind == "natural":
                 pos[sel], vel[sel] = hcw_propagate(piece.p0, piece.v0, self.n, tau)
+            elif piece.kind == "hold":  # p0 + τ·0 is p0, bit for bit
+                pos[sel], vel[sel] = piece.p0, 0.0
             else:
                 pos[sel] = piece.p0 + tau[:, None] * piece.v0
                 vel[sel] = piece.v0
