@@ -11,6 +11,7 @@ loops instead:
   the ray), the same arithmetic in the same order as the NumPy code;
 * :mod:`.trig` and :mod:`.rose`: the rose pattern with a sine and cosine that LLVM can inline
   (within 2 ulp of the C library's);
+* :mod:`.risley`: the Risley prisms' vector refraction, one prism at a time over every ray;
 * :mod:`.poses`: per-ray rotations of the built-in trajectories (chains of rotations at
   constant rates: tumbling, constant angular velocity);
 * :mod:`.cull`: a conservative test that skips pulses which cannot reach any target's
@@ -82,6 +83,7 @@ def warm_up() -> bool:
     from .poses import chain_matrices
     from .philox import ray_uniforms
     from .raycast import embree_rays, refine_hits
+    from .risley import risley_directions
     from .rose import rose_directions
     from .rotation import rotate_two_angles
 
@@ -90,6 +92,9 @@ def warm_up() -> bool:
     index = np.zeros(1, dtype=np.int64)
     ray_uniforms(np.zeros(2, dtype=np.uint64), index, 1)
     rose_directions(index, 1.0, 4.0, 0.5, 1.0, 5.0, 0.0)
+    two = np.ones(2)
+    risley_directions(np.zeros(1), index, one, 0.1 * two, two, two, two,
+                      np.array([True, False]), 1.5 * two)
     rotate_two_angles(one, np.zeros((1, 2)))
     embree_rays(one, one, np.zeros(3), 1.0, 1e-6)
     refine_hits(np.full(1, -1, dtype=np.int32), one, one, one, one, 1e-6,
