@@ -12,6 +12,8 @@ loops instead:
 * :mod:`.trig` and :mod:`.rose`: the rose pattern with a sine and cosine that LLVM can inline
   (within 2 ulp of the C library's);
 * :mod:`.risley`: the Risley prisms' vector refraction, one prism at a time over every ray;
+  :mod:`.patterns`: firing schedules (time, slot, channel in one pass) and the spinning and
+  Lissajous directions;
 * :mod:`.poses`: per-ray rotations of the built-in trajectories (chains of rotations at
   constant rates: tumbling, constant angular velocity);
 * :mod:`.cull`: a conservative test that skips pulses which cannot reach any target's
@@ -83,6 +85,7 @@ def warm_up() -> bool:
     from .poses import chain_matrices
     from .philox import ray_uniforms
     from .raycast import embree_rays, refine_hits
+    from .patterns import cycle_rays, lissajous_directions, spinning_directions
     from .risley import risley_directions
     from .rose import rose_directions
     from .rotation import rotate_two_angles
@@ -93,6 +96,9 @@ def warm_up() -> bool:
     ray_uniforms(np.zeros(2, dtype=np.uint64), index, 1)
     rose_directions(index, 1.0, 4.0, 0.5, 1.0, 5.0, 0.0)
     two = np.ones(2)
+    cycle_rays(index, 1, 1.0, np.zeros(1), np.zeros(1, dtype=np.int16))
+    spinning_directions(np.zeros(1), index, 1.0, 0.0, 1.0, np.zeros(1), np.zeros(1))
+    lissajous_directions(np.zeros(1), 1.0, 0.0, 0.1, 1.0, 0.0, 0.1, 0.0)
     risley_directions(np.zeros(1), index, one, 0.1 * two, two, two, two,
                       np.array([True, False]), 1.5 * two)
     rotate_two_angles(one, np.zeros((1, 2)))

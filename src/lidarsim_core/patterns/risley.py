@@ -163,8 +163,7 @@ class RisleyPattern(CycleTimedPattern):
     # ---- the pattern ---------------------------------------------------------------------
     def rays_for_indices(self, index: np.ndarray) -> RayBatch:
         index = np.asarray(index, dtype=np.int64)
-        t = self.cycle.time(index)
-        channel = self.cycle.channel(index)
+        t, _, channel = self.cycle.rays(index)
         if kernels.enabled():  # the same optics, compiled (kernels.risley)
             from ..kernels.risley import risley_directions
 
