@@ -9,11 +9,13 @@ number of frames.
 from __future__ import annotations
 
 import logging
+import queue
+import threading
 from contextlib import ExitStack, contextmanager
 from typing import Any, Callable, Iterable, Iterator
 
 from ..errors import ConfigError
-from .frames import FrameJob, run_frame_job
+from .frames import FrameJob, run_frame_job, simulate_frame_job, write_frame_job
 
 OnResult = Callable[[dict[str, Any]], None]
 
@@ -21,10 +23,115 @@ OnResult = Callable[[dict[str, Any]], None]
 IN_FLIGHT_PER_THREAD = 2
 
 
-def run_serial(jobs: Iterable[FrameJob], on_result: OnResult) -> None:
-    """Run the jobs one after another in this process."""
-    for job in jobs:
-        on_result(run_frame_job(job))
+def run_serial(jobs: Iterable[FrameJob], on_result: OnResult, *,
+               overlap: bool = True) -> None:
+    """Run the jobs one after another in this process.
+
+    With ``overlap`` (the default) a writer thread writes each frame's file, checksum and
+    sidecar while this thread simulates the next frame; at most :data:`WRITE_QUEUE` simulated
+    frames wait for it, so memory stays bounded. The files are the same to the bit (the
+    same code writes them, each atomically), ``on_result`` is called on this thread in frame
+    order, and an error or interrupt on either side stops both: the frame being written is
+    finished or left as a ``.part`` file, which the next run removes.
+    """
+    if not overlap:
+        for job in jobs:
+            on_result(run_frame_job(job))
+        return
+    writer = _FrameWriter()
+    try:
+        for job in jobs:
+            spool, info = simulate_frame_job(job)
+            writer.put(job, spool, info)  # waits while the queue is full
+            for result in writer.results():
+                on_result(result)
+        writer.finish()
+        for result in writer.results():
+            on_result(result)
+    finally:
+        writer.abandon()
+
+
+#: Simulated frames waiting for the writer thread of :func:`run_serial`.
+WRITE_QUEUE = 2
+
+
+class _FrameWriter:
+    """The writer thread of :func:`run_serial`."""
+
+    def __init__(self) -> None:
+        self._queue: queue.Queue[Any] = queue.Queue(maxsize=WRITE_QUEUE)
+        self._done: queue.Queue[dict[str, Any]] = queue.Queue()
+        self._error: BaseException | None = None
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, name="lidarsim-writer", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while True:
+            item = self._queue.get()
+            if item is None:
+                return
+            job, spool, info = item
+            if self._stop.is_set() or self._error is not None:
+                spool.close()  # stopping: drop what is left
+                continue
+            try:
+                self._done.put(write_frame_job(job, spool, info))
+            except BaseException as exc:  # reported on the simulating thread
+                self._error = exc
+
+    def _raise(self) -> None:
+        if self._error is not None:
+            raise self._error
+
+    def put(self, job: FrameJob, spool: Any, info: Any) -> None:
+        """Queue a simulated frame (after re-raising an error of the writer)."""
+        self._raise()
+        while True:
+            try:
+                self._queue.put((job, spool, info), timeout=0.1)
+                return
+            except queue.Full:
+                self._raise()
+
+    def results(self) -> Iterator[dict[str, Any]]:
+        """The results written since the last call, in order."""
+        while True:
+            try:
+                yield self._done.get_nowait()
+            except queue.Empty:
+                self._raise()
+                return
+
+    def finish(self) -> None:
+        """Wait until every queued frame is written."""
+        self._queue.put(None)
+        while self._thread.is_alive():
+            self._thread.join(0.1)
+        self._raise()
+
+    def abandon(self) -> None:
+        """Stop after the frame being written (no-op once finished)."""
+        if not self._thread.is_alive():
+            return
+        self._stop.set()
+        try:
+            self._queue.put_nowait(None)
+        except queue.Full:
+            pass
+        while self._thread.is_alive():
+            try:  # make room for the sentinel; the thread closes what it takes
+                self._queue.put(None, timeout=0.1)
+            except queue.Full:
+                continue
+        while True:  # close the spools nobody will write
+            try:
+                item = self._queue.get_nowait()
+            except queue.Empty:
+                break
+            if item is not None:
+                item[1].close()
 
 
 def _dask() -> Any:
