@@ -15,6 +15,9 @@ interleaved rounds (:func:`lidarsim_core.bench.interleaved_best`):
   simulation as fast as Embree alone on the same rays);
 * ``stages_1thread``: nanoseconds per emitted ray of each stage on one thread (pattern, poses,
   cull, cast, measurement, record; :func:`suite_stages`).
+
+:func:`bench_dataset` compares a serial ``lidarsim dataset`` run on a tumbling sequence with
+simulating the same frames in memory.
 """
 
 from __future__ import annotations
@@ -295,11 +298,53 @@ def suite_targets(scenes: dict[str, dict[str, Any]]) -> dict[str, Any]:
 
 
 def run_suite(*, quick: bool = False, scenes: list[str] | None = None) -> dict[str, Any]:
-    """Every scene of :data:`SUITE` (or ``scenes``): ``{"scenes": {NAME: {...}}, "targets":
-    {...}}``. ``quick``: 0.1 s scans and two rounds, no 1M-triangle mesh."""
+    """Every scene of :data:`SUITE` (or ``scenes``) and the dataset throughput:
+    ``{"scenes": {NAME: {...}}, "targets": {...}, "dataset": {...}}``. ``quick``: 0.1 s scans
+    and two rounds, no 1M-triangle mesh, a 20-frame dataset."""
     names = scenes or [n for n in SUITE if not (quick and n == "mesh-1m")]
     duration, rounds = (0.1, 2) if quick else (1.0, 5)
     results = {name: bench_suite_scene(name, duration_s=duration, rounds=rounds)
                for name in names}
     return {"duration_s": duration, "rounds": rounds, "scenes": results,
-            "targets": suite_targets(results)}
+            "targets": suite_targets(results),
+            "dataset": bench_dataset(frames=20 if quick else 200, rounds=2 if quick else 3)}
+
+
+def bench_dataset(*, frames: int = 200, rounds: int = 3) -> dict[str, Any]:
+    """Frames per second of a tumbling sequence (:data:`SUITE`'s ``tumbling-risley``, 0.1 s
+    frames at 10 Hz): simulated in memory (``Simulation.run_frame`` of every frame) and
+    written by a serial ``lidarsim dataset`` run (binary PLY files, checksums, sidecars,
+    manifest; a fresh directory each round); best of ``rounds`` interleaved runs."""
+    import shutil
+
+    from .dataset.generate import generate_dataset
+    from .pipeline import Simulation
+    from .scenario import scenario_from_dict
+
+    data = _scene_tumbling("livox-mid70")(0.1)
+    data["scan"] = {"duration_s": 0.1, "frame_rate_hz": 10, "frames": frames}
+    scenario = scenario_from_dict(data, source="<bench dataset>")
+    sim = Simulation(scenario)
+    folder = Path(tempfile.mkdtemp(prefix="lidarsim-bench-dataset-"))
+    runs = iter(range(10 ** 6))
+
+    def in_memory() -> None:
+        for frame in range(frames):
+            sim.run_frame(frame)
+
+    def dataset() -> None:
+        out = folder / f"run{next(runs)}"
+        generate_dataset(scenario, out)
+        shutil.rmtree(out, ignore_errors=True)
+
+    try:
+        best, cores = interleaved_best({"in_memory": in_memory, "dataset": dataset}, rounds)
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+    result = {"scene": "tumbling-risley", "frames": frames, "frame_s": 0.1,
+              "in_memory_frames_per_s": frames / best["in_memory"],
+              "dataset_frames_per_s": frames / best["dataset"],
+              "cores_used": {key: round(value, 2) for key, value in cores.items()}}
+    result["dataset_over_in_memory"] = \
+        result["dataset_frames_per_s"] / result["in_memory_frames_per_s"]
+    return result
