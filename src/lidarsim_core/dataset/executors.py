@@ -52,76 +52,93 @@ def run_serial(jobs: Iterable[FrameJob], on_result: OnResult, *,
         writer.abandon()
 
 
-#: Simulated frames waiting for the writer thread of :func:`run_serial`.
+#: Simulated frames waiting for the writer threads of :func:`run_serial`.
 WRITE_QUEUE = 2
+#: Writer threads: a frame's write spends most of its time in ``fsync``, which releases the
+#: GIL, so two writers keep up with a simulation that is faster than one write.
+WRITERS = 2
 
 
 class _FrameWriter:
-    """The writer thread of :func:`run_serial`."""
+    """The writer threads of :func:`run_serial`; results come back in submission order."""
 
     def __init__(self) -> None:
         self._queue: queue.Queue[Any] = queue.Queue(maxsize=WRITE_QUEUE)
-        self._done: queue.Queue[dict[str, Any]] = queue.Queue()
+        self._lock = threading.Lock()
+        self._finished: dict[int, dict[str, Any]] = {}
+        self._submitted = 0
+        self._reported = 0
         self._error: BaseException | None = None
         self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, name="lidarsim-writer", daemon=True)
-        self._thread.start()
+        self._threads = [threading.Thread(target=self._run, name=f"lidarsim-writer-{i}",
+                                          daemon=True) for i in range(WRITERS)]
+        for thread in self._threads:
+            thread.start()
 
     def _run(self) -> None:
         while True:
             item = self._queue.get()
             if item is None:
                 return
-            job, spool, info = item
+            number, job, spool, info = item
             if self._stop.is_set() or self._error is not None:
                 spool.close()  # stopping: drop what is left
                 continue
             try:
-                self._done.put(write_frame_job(job, spool, info))
+                result = write_frame_job(job, spool, info)
             except BaseException as exc:  # reported on the simulating thread
-                self._error = exc
+                with self._lock:
+                    self._error = self._error or exc
+                continue
+            with self._lock:
+                self._finished[number] = result
 
     def _raise(self) -> None:
         if self._error is not None:
             raise self._error
 
+    def _alive(self) -> bool:
+        return any(thread.is_alive() for thread in self._threads)
+
     def put(self, job: FrameJob, spool: Any, info: Any) -> None:
-        """Queue a simulated frame (after re-raising an error of the writer)."""
+        """Queue a simulated frame (after re-raising an error of a writer)."""
         self._raise()
+        item = (self._submitted, job, spool, info)
         while True:
             try:
-                self._queue.put((job, spool, info), timeout=0.1)
-                return
+                self._queue.put(item, timeout=0.1)
+                break
             except queue.Full:
                 self._raise()
+        self._submitted += 1
 
     def results(self) -> Iterator[dict[str, Any]]:
-        """The results written since the last call, in order."""
+        """The results written since the last call, in submission order."""
         while True:
-            try:
-                yield self._done.get_nowait()
-            except queue.Empty:
+            with self._lock:
+                result = self._finished.pop(self._reported, None)
+            if result is None:
                 self._raise()
                 return
+            self._reported += 1
+            yield result
 
     def finish(self) -> None:
         """Wait until every queued frame is written."""
-        self._queue.put(None)
-        while self._thread.is_alive():
-            self._thread.join(0.1)
+        for _ in self._threads:
+            self._queue.put(None)
+        while self._alive():
+            for thread in self._threads:
+                thread.join(0.1)
         self._raise()
 
     def abandon(self) -> None:
-        """Stop after the frame being written (no-op once finished)."""
-        if not self._thread.is_alive():
+        """Stop after the frames being written (no-op once finished)."""
+        if not self._alive():
             return
         self._stop.set()
-        try:
-            self._queue.put_nowait(None)
-        except queue.Full:
-            pass
-        while self._thread.is_alive():
-            try:  # make room for the sentinel; the thread closes what it takes
+        while self._alive():
+            try:  # the threads close the spools they take, then meet a sentinel
                 self._queue.put(None, timeout=0.1)
             except queue.Full:
                 continue
@@ -131,7 +148,7 @@ class _FrameWriter:
             except queue.Empty:
                 break
             if item is not None:
-                item[1].close()
+                item[2].close()
 
 
 def _dask() -> Any:
