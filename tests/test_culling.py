@@ -81,7 +81,29 @@ SCENES = {
     "frozen-risley": lambda: scenario_from_dict(_demo(
         sensor={"datasheet": "livox-mid70", "pose": {"position_m": [0, 0, 0]}},
         scan={"duration_s": 0.05, "motion": "frozen"})),
+    # the benchmark's realistic scenes: per-ray target poses seen through the Risley prisms,
+    # a spinning scanner and a Risley sensor both moving and turning, beam divergence
+    "tumbling-risley": lambda: _suite("tumbling-risley", 0.05),
+    "vlp16-circling": lambda: _suite("vlp16-circling-15m", 0.15),
+    "flyaround-risley": lambda: _suite("flyaround-50m", 0.05),
+    "torque-free-fast-spin": lambda: scenario_from_dict(_torque_free()),
 }
+
+
+def _suite(name: str, duration: float):
+    from lidarsim_core.bench_suite import SUITE
+
+    return scenario_from_dict(SUITE[name][1](duration), source=f"<{name}>")
+
+
+def _torque_free() -> dict:
+    """A triaxial body spinning fast (30 °/s) and close: poses change a lot within a piece."""
+    data = _demo(scan={"duration_s": 0.1})
+    data["targets"][0].pop("pose")
+    data["targets"][0]["trajectory"] = {
+        "kind": "torque_free", "position_m": [12, 0, 0], "inertia_kg_m2": [17000, 124000, 129000],
+        "angular_velocity_deg_s": [20, 5, 30], "centre_of_mass_m": [0, 0, 2]}
+    return data
 
 
 @pytest.mark.parametrize("scene", sorted(SCENES))
