@@ -15,7 +15,7 @@ loops instead:
   :mod:`.patterns`: firing schedules (time, slot, channel in one pass) and the spinning and
   Lissajous directions;
 * :mod:`.poses`: per-ray rotations of the built-in trajectories (chains of rotations at
-  constant rates: tumbling, constant angular velocity);
+  constant rates: tumbling, constant angular velocity; the look-at attitude);
 * :mod:`.cull`: a conservative test that skips pulses which cannot reach any target's
   bounding box, even after their angular error and beam divergence, before anything else is
   computed for them.
@@ -82,7 +82,7 @@ def warm_up() -> bool:
     import numpy as np
 
     from .cull import cull_posed
-    from .poses import chain_matrices
+    from .poses import chain_matrices, look_at_matrices
     from .philox import ray_uniforms
     from .raycast import embree_rays, refine_hits
     from .patterns import cycle_rays, lissajous_directions, spinning_directions
@@ -110,6 +110,7 @@ def warm_up() -> bool:
                np.zeros(1, dtype=np.bool_), box, -box, np.full(1, -1, dtype=np.int64), index,
                0.0)
     chain_matrices(np.zeros(1), np.array([[0.0, 0.0, 0.0, 1.0]] * 2), one, np.ones(1))
+    look_at_matrices(one, np.zeros(3), np.array([0.0, 0.0, 1.0]))
     return True
 
 

@@ -77,3 +77,37 @@ def chain_matrices(tau, fixed, axes, rates):  # noqa: ANN001, ANN201
         out[i, 1, 2] = 2.0 * (yz - xw)
         out[i, 2, 2] = -x2 - y2 + z2 + w2
     return out
+
+
+@njit(nogil=True, cache=True)
+def look_at_matrices(positions, point, up):  # noqa: ANN001, ANN201
+    """(N, 3, 3) matrices of :func:`lidarsim_core.trajectories.attitude.look_at_matrices`
+    (the same construction per row; ``up`` is a unit vector)."""
+    n = positions.shape[0]
+    out = np.empty((n, 3, 3))
+    for i in range(n):
+        x0 = point[0] - positions[i, 0]
+        x1 = point[1] - positions[i, 1]
+        x2 = point[2] - positions[i, 2]
+        norm = np.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
+        if norm < 1e-12:
+            x0, x1, x2, norm = 1.0, 0.0, 0.0, 1.0
+        x0, x1, x2 = x0 / norm, x1 / norm, x2 / norm
+        dot = up[0] * x0 + up[1] * x1 + up[2] * x2
+        z0, z1, z2 = up[0] - dot * x0, up[1] - dot * x1, up[2] - dot * x2
+        znorm = np.sqrt(z0 * z0 + z1 * z1 + z2 * z2)
+        if znorm < 1e-9:  # the scene axis least aligned with the boresight
+            a0, a1, a2 = abs(x0), abs(x1), abs(x2)
+            k = 0 if (a0 <= a1 and a0 <= a2) else (1 if a1 <= a2 else 2)
+            e0 = 1.0 if k == 0 else 0.0
+            e1 = 1.0 if k == 1 else 0.0
+            e2 = 1.0 if k == 2 else 0.0
+            dot = e0 * x0 + e1 * x1 + e2 * x2
+            z0, z1, z2 = e0 - dot * x0, e1 - dot * x1, e2 - dot * x2
+            znorm = np.sqrt(z0 * z0 + z1 * z1 + z2 * z2)
+        z0, z1, z2 = z0 / znorm, z1 / znorm, z2 / znorm
+        out[i, 0, 0], out[i, 1, 0], out[i, 2, 0] = x0, x1, x2
+        out[i, 0, 1], out[i, 1, 1], out[i, 2, 1] = z1 * x2 - z2 * x1, z2 * x0 - z0 * x2, \
+            z0 * x1 - z1 * x0
+        out[i, 0, 2], out[i, 1, 2], out[i, 2, 2] = z0, z1, z2
+    return out

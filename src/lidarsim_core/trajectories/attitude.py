@@ -20,6 +20,7 @@ import numpy as np
 from pydantic import ConfigDict, Discriminator, Field, Tag, model_validator
 from scipy.spatial.transform import Rotation
 
+from .. import kernels
 from ..components import ComponentOptions
 from ..poses import PoseConfig
 
@@ -47,9 +48,15 @@ class LookAtAttitude(ComponentOptions):
         return look_at(positions, np.asarray(self.point_m, float), np.asarray(self.up, float))
 
     def matrices(self, positions: np.ndarray) -> np.ndarray:
-        """(N, 3, 3) body→scene rotation matrices for bodies at ``positions``."""
-        return look_at_matrices(positions, np.asarray(self.point_m, float),
-                                np.asarray(self.up, float))
+        """(N, 3, 3) body→scene rotation matrices for bodies at ``positions`` (compiled when
+        the kernels are in use: the same construction, within a few ulp)."""
+        point, up = np.asarray(self.point_m, float), np.asarray(self.up, float)
+        positions = np.atleast_2d(np.asarray(positions, dtype=np.float64))
+        if len(positions) > 1 and kernels.enabled():
+            from ..kernels.poses import look_at_matrices as compiled
+
+            return compiled(np.ascontiguousarray(positions), point, up / np.linalg.norm(up))
+        return look_at_matrices(positions, point, up)
 
 
 class FixedAttitude(ComponentOptions):

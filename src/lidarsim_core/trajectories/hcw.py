@@ -57,7 +57,7 @@ from ..poses import Poses
 from ..posing import PoseMatrices
 from .attitude import AttitudeConfig, LookAtAttitude
 from .base import Trajectory
-from .orbit import OrbitConfig, hcw_propagate
+from .orbit import OrbitConfig, hcw_positions, hcw_propagate
 
 Vec3 = tuple[float, float, float]
 _ZERO3: Vec3 = (0.0, 0.0, 0.0)
@@ -227,8 +227,10 @@ class HCWTrajectory(Trajectory):
         pieces.append(_Piece(t, math.inf, "natural", p, v))
         return pieces
 
-    def states_at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(N, 3) LVLH positions (m) and velocities (m/s) at times ``t`` (s from the epoch)."""
+    def states_at(self, t: np.ndarray, *, velocities: bool = True
+                  ) -> tuple[np.ndarray, np.ndarray]:
+        """(N, 3) LVLH positions (m) and velocities (m/s) at times ``t`` (s from the epoch);
+        without ``velocities`` the second array is left unset (the poses need none)."""
         t = np.atleast_1d(np.asarray(t, dtype=np.float64))
         # the first piece starts at -inf; a time on a boundary belongs to the later piece
         which = np.searchsorted(self._starts, t, side="right") - 1
@@ -240,7 +242,9 @@ class HCWTrajectory(Trajectory):
             sel = slice(None) if one else which == k  # usually every time in one piece
             anchor = piece.t1 if piece.t0 == -math.inf else piece.t0
             tau = t[sel] - anchor
-            if piece.kind == "natural":
+            if piece.kind == "natural" and not velocities:
+                pos[sel] = hcw_positions(piece.p0, piece.v0, self.n, tau)
+            elif piece.kind == "natural":
                 pos[sel], vel[sel] = hcw_propagate(piece.p0, piece.v0, self.n, tau)
             elif piece.kind == "hold":  # p0 + τ·0 is p0, bit for bit
                 pos[sel], vel[sel] = piece.p0, 0.0
@@ -259,7 +263,7 @@ class HCWTrajectory(Trajectory):
         return Poses(position, self.options.attitude.rotations(position))
 
     def pose_matrices(self, t: np.ndarray) -> PoseMatrices:
-        position, _ = self.states_at(t)
+        position, _ = self.states_at(t, velocities=False)
         if len(position) > 1 and bool((position == position[0]).all()):
             # a hold: one position, so one attitude (the same bits as one per ray)
             matrix = self.options.attitude.matrices(position[:1])
