@@ -153,3 +153,19 @@ def test_poses_are_computed_once_per_piece_and_the_frame_matches_the_scipy_path(
     for column in ("x_true", "y_true", "z_true", "range_true", "x", "y", "z"):
         np.testing.assert_allclose(fast[column], reference[column], rtol=0, atol=1e-12,
                                    err_msg=column)
+
+
+@pytest.mark.parametrize("scene", ["tumbling-risley", "flyaround-50m", "vlp16-circling-15m"])
+def test_per_ray_poses_give_the_same_bytes_for_any_chunk_size_and_threads(scene, monkeypatch):
+    from lidarsim_core.bench_suite import SUITE
+    from lidarsim_core.scenario import scenario_from_dict
+
+    scenario = scenario_from_dict(SUITE[scene][1](0.03), source="<test>")
+    clouds = []
+    for threads, chunk in (("1", 1), ("1", 997), ("2", 65536)):
+        monkeypatch.setenv("LIDARSIM_THREADS", threads)
+        clouds.append(Simulation(scenario).run_frame(0, chunk_rays=chunk))
+    assert len(clouds[0]) > 50
+    for other in clouds[1:]:
+        for name, column in clouds[0].columns.items():
+            assert column.tobytes() == other[name].tobytes(), name

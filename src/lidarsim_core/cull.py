@@ -39,7 +39,7 @@ from . import kernels
 from .mesh import Mesh
 from .noise.outliers import SpuriousReturnModel
 from .patterns.base import RayBatch
-from .posing import piece_poses
+from .posing import PiecePoses, piece_poses
 from .rng import MAX_ABS_NORMAL
 
 if TYPE_CHECKING:
@@ -91,6 +91,8 @@ class PulseCuller:
         from .kernels.cull import cull_by_grid, cull_posed
 
         posed = piece_poses(sim, batch, t_frame)
+        if max(len(posed.sensor), *(len(p) for p in posed.targets)) > 1:  # rows per pose
+            posed = PiecePoses(posed.sensor.full(), tuple(p.full() for p in posed.targets))
         trees = [cull_tree(target.mesh) for target in sim.targets]
         roots = np.cumsum([0] + [len(lo) for lo, _, _ in trees])[:-1]
         directions = np.ascontiguousarray(batch.direction, dtype=np.float64)

@@ -42,21 +42,28 @@ if TYPE_CHECKING:
 
 @dataclass(frozen=True)
 class PoseMatrices:
-    """N body→scene poses as arrays (N may be 1, which broadcasts).
+    """N body→scene poses as arrays; either array may hold one row, shared by all N (a body
+    turning about a fixed centre, a sensor holding its station).
 
     Attributes
     ----------
     position
-        (N, 3) float64 body origins in the scene frame (m).
+        (N or 1, 3) float64 body origins in the scene frame (m).
     matrix
-        (N, 3, 3) float64 body→scene rotation matrices.
+        (N or 1, 3, 3) float64 body→scene rotation matrices.
     """
 
     position: np.ndarray
     matrix: np.ndarray
 
     def __len__(self) -> int:
-        return len(self.position)
+        return max(len(self.position), len(self.matrix))
+
+    def full(self) -> "PoseMatrices":
+        """Both arrays with one row per pose (contiguous)."""
+        n = len(self)
+        return PoseMatrices(np.ascontiguousarray(np.broadcast_to(self.position, (n, 3))),
+                            np.ascontiguousarray(np.broadcast_to(self.matrix, (n, 3, 3))))
 
     @classmethod
     def from_poses(cls, poses: "Poses") -> "PoseMatrices":
@@ -66,15 +73,17 @@ class PoseMatrices:
 
     def take(self, rows: np.ndarray) -> "PoseMatrices":
         """The poses at ``rows`` (a single shared pose stays as it is)."""
-        if len(self) == 1:
-            return self
-        return PoseMatrices(self.position[rows], self.matrix[rows])
+        if len(self) > 1 and len(rows) == 0:  # no ray left: no pose, shared or not
+            return PoseMatrices(self.position[:0], self.matrix[:0])
+        return PoseMatrices(self.position if len(self.position) == 1 else self.position[rows],
+                            self.matrix if len(self.matrix) == 1 else self.matrix[rows])
 
     def to_poses(self) -> "Poses":
         """As a :class:`~lidarsim_core.poses.Poses` (SciPy rotations)."""
         from .poses import Poses
 
-        return Poses(self.position, Rotation.from_matrix(self.matrix))
+        full = self.full()
+        return Poses(full.position, Rotation.from_matrix(full.matrix))
 
 
 def quat_multiply(a: tuple[Any, ...], b: tuple[Any, ...]) -> tuple[Any, ...]:
@@ -215,13 +224,17 @@ def piece_poses(sim: "Simulation", batch: "RayBatch", t_frame: float) -> PiecePo
 
 
 def _shared(poses: PoseMatrices) -> PoseMatrices:
-    """One pose when every ray has the same (a chaser holding its station): the frame changes
-    then use one matrix for every ray, with the same bits (:func:`lidarsim_core.chunks.rotate`)."""
-    if len(poses) > 1 and bool((poses.matrix[-1] == poses.matrix[0]).all()) and \
-            bool((poses.position == poses.position[0]).all()) and \
-            bool((poses.matrix == poses.matrix[0]).all()):
-        return PoseMatrices(poses.position[:1], poses.matrix[:1])
-    return poses
+    """One row for a position or rotation that every ray shares (a chaser holding its
+    station, a body turning about its origin): the frame changes then use it for every ray,
+    with the same bits (:func:`lidarsim_core.chunks.rotate`)."""
+    position, matrix = poses.position, poses.matrix
+    if len(position) > 1 and bool((position[-1] == position[0]).all()) and \
+            bool((position == position[0]).all()):
+        position = position[:1]
+    if len(matrix) > 1 and bool((matrix[-1] == matrix[0]).all()) and \
+            bool((matrix == matrix[0]).all()):
+        matrix = matrix[:1]
+    return PoseMatrices(position, matrix)
 
 
 def with_piece_poses(sim: "Simulation", batch: "RayBatch", t_frame: float) -> "RayBatch":

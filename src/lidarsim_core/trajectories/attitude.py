@@ -52,7 +52,7 @@ class LookAtAttitude(ComponentOptions):
         the kernels are in use: the same construction, within a few ulp)."""
         point, up = np.asarray(self.point_m, float), np.asarray(self.up, float)
         positions = np.atleast_2d(np.asarray(positions, dtype=np.float64))
-        if len(positions) > 1 and kernels.enabled():
+        if kernels.enabled():  # for any number of rows: a ray's pose never depends on it
             from ..kernels.poses import look_at_matrices as compiled
 
             return compiled(np.ascontiguousarray(positions), point, up / np.linalg.norm(up))

@@ -263,11 +263,14 @@ class HCWTrajectory(Trajectory):
         return Poses(position, self.options.attitude.rotations(position))
 
     def pose_matrices(self, t: np.ndarray) -> PoseMatrices:
+        t = np.atleast_1d(np.asarray(t, dtype=np.float64))
+        if len(t) > 1:
+            which = np.searchsorted(self._starts, [t.min(), t.max()], side="right") - 1
+            if which[0] == which[-1] and self._pieces[which[0]].kind == "hold":
+                # every time in one hold: one pose, shared by every ray (the same bits)
+                position = self._pieces[which[0]].p0[None, :].astype(np.float64)
+                return PoseMatrices(position, self.options.attitude.matrices(position))
         position, _ = self.states_at(t, velocities=False)
-        if len(position) > 1 and bool((position == position[0]).all()):
-            # a hold: one position, so one attitude (the same bits as one per ray)
-            matrix = self.options.attitude.matrices(position[:1])
-            return PoseMatrices(position, np.repeat(matrix, len(position), axis=0))
         return PoseMatrices(position, self.options.attitude.matrices(position))
 
 

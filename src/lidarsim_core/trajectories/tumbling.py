@@ -118,8 +118,8 @@ class _RigidBodyTrajectory(Trajectory):
     def pose_matrices(self, t: np.ndarray) -> PoseMatrices:
         tau = np.atleast_1d(np.asarray(t, dtype=np.float64)) - self.options.t_ref_s
         matrix = self.scene_matrices(tau)
-        if not self._com.any():  # p - R·0 is p, bit for bit
-            return PoseMatrices(np.repeat(self._p[None, :], len(tau), axis=0), matrix)
+        if not self._com.any():  # p - R·0 is p, bit for bit: one position for all
+            return PoseMatrices(self._p[None, :], matrix)
         c = self._com
         turned = matrix[:, :, 0] * c[0] + matrix[:, :, 1] * c[1] + matrix[:, :, 2] * c[2]
         return PoseMatrices(self._p - turned, matrix)
