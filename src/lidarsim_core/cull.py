@@ -91,13 +91,17 @@ class PulseCuller:
         from .kernels.cull import cull_by_grid, cull_posed
 
         posed = piece_poses(sim, batch, t_frame)
-        if max(len(posed.sensor), *(len(p) for p in posed.targets)) > 1:  # rows per pose
-            posed = PiecePoses(posed.sensor.full(), tuple(p.full() for p in posed.targets))
+        m = max(len(posed.sensor), *(len(p) for p in posed.targets))
         trees = [cull_tree(target.mesh) for target in sim.targets]
         roots = np.cumsum([0] + [len(lo) for lo, _, _ in trees])[:-1]
         directions = np.ascontiguousarray(batch.direction, dtype=np.float64)
-        if max(len(posed.sensor), *(len(p) for p in posed.targets)) > 1:
-            # poses per pulse: the frame changes are made per pulse in the kernel
+        if m > 1:
+            grid = self._moving_grid(posed, trees, m)
+            if grid is not None:
+                return cull_by_grid(directions, grid)
+            # near or fast targets: the frame changes are made per pulse in the kernel, which
+            # indexes every pose array by pulse
+            posed = PiecePoses(posed.sensor.full(m), tuple(p.full(m) for p in posed.targets))
             moving = np.array([len(p) > 1 for p in posed.targets])
             first = np.cumsum([0] + [len(p) for p in posed.targets])[:-1]
             return cull_posed(
@@ -110,23 +114,58 @@ class PulseCuller:
                                 for t, root in zip(trees, roots)]),
                 roots, self.margin_rad)
         # one pose for the piece: look the directions up in a cube map
-        sensor_rotation = posed.sensor.matrix[0]
-        rotations, origins, grows = [], [], []
-        for poses, (lo, hi, _) in zip(posed.targets, trees):
-            to_body = poses.matrix[0].T
-            rotations.append((to_body @ sensor_rotation)[None])
-            origin = to_body @ (posed.sensor.position[0] - poses.position[0])
-            origins.append(origin[None])
-            # farthest corner of the target's box from the origin: the chord between two rays
-            # at angle a is below s·a for every distance s up to it; the last terms cover the
-            # rounding of the box test itself
-            far = np.sqrt((np.maximum(np.abs(lo[0] - origin), np.abs(hi[0] - origin)) ** 2
-                           ).sum())
-            grows.append(np.array([far * (self.margin_rad + 1e-9) + 1e-9]))
-        grid = self._grid(rotations, origins, grows, trees)
+        grid = self._pose_grid(posed, 0, [0.0] * len(trees), trees)
         if grid is None:  # the sensor is inside a target's box: nothing to cull
             return np.arange(len(batch), dtype=np.int64)
         return cull_by_grid(directions, grid)
+
+    def _pose_grid(self, posed: PiecePoses, k: int, motion: list[float],
+                   trees: list[tuple[np.ndarray, ...]]) -> np.ndarray | None:
+        """The cube map of the reachable directions at pose row ``k``, every target's boxes
+        also grown by its ``motion`` (m)."""
+        sensor_rotation = posed.sensor.matrix[min(k, len(posed.sensor.matrix) - 1)]
+        sensor_position = posed.sensor.position[min(k, len(posed.sensor.position) - 1)]
+        rotations, origins, grows = [], [], []
+        for poses, (lo, hi, _), moved in zip(posed.targets, trees, motion):
+            to_body = poses.matrix[min(k, len(poses.matrix) - 1)].T
+            rotations.append((to_body @ sensor_rotation)[None])
+            origin = to_body @ (sensor_position - poses.position[min(k, len(poses.position) - 1)])
+            origins.append(origin[None])
+            # farthest corner of the target's box from the origin (plus how far the target
+            # moves): the chord between two rays at angle a is below s·a for every distance s
+            # up to it; the last terms cover the rounding of the box test itself
+            far = np.sqrt((np.maximum(np.abs(lo[0] - origin), np.abs(hi[0] - origin)) ** 2
+                           ).sum()) + moved
+            grows.append(np.array([far * (self.margin_rad + 1e-9) + moved * (1 + 1e-9)
+                                   + 1e-9]))
+        return self._grid(rotations, origins, grows, trees)
+
+    def _moving_grid(self, posed: PiecePoses, trees: list[tuple[np.ndarray, ...]], m: int
+                     ) -> np.ndarray | None:
+        """With a pose per pulse, the cube map at the piece's middle pose with every box grown
+        by how far the target moves relative to the sensor during the piece (a box grown by
+        ``d`` in the body frame holds every point that strays by at most ``d``); None when a
+        target is nearer than its size (its boxes would straddle the map's faces and fill
+        them) or moves more than a tenth of its size (or the sensor is inside a box)."""
+        from .kernels.cull import motion_bound
+
+        middle = m // 2
+        sensor = posed.sensor.position[min(middle, len(posed.sensor.position) - 1)]
+        motion = []
+        for poses, (lo, hi, _) in zip(posed.targets, trees):
+            size = float(np.linalg.norm(hi[0] - lo[0]))
+            rotation = poses.matrix[min(middle, len(poses.matrix) - 1)]
+            centre = poses.position[min(middle, len(poses.position) - 1)] + \
+                rotation @ (0.5 * (lo[0] + hi[0]))
+            if float(np.linalg.norm(centre - sensor)) < size:
+                return None
+            reach = float(np.sqrt((np.maximum(np.abs(lo[0]), np.abs(hi[0])) ** 2).sum()))
+            moved = motion_bound(posed.sensor.matrix, posed.sensor.position, poses.matrix,
+                                 poses.position, middle, reach)
+            if not moved <= 0.1 * size:
+                return None
+            motion.append(moved * (1 + 1e-9) + 1e-9)
+        return self._pose_grid(posed, middle, motion, trees)
 
     def _grid(self, rotations: list[np.ndarray], origins: list[np.ndarray],
               grows: list[np.ndarray], trees: list[tuple[np.ndarray, ...]]

@@ -59,9 +59,9 @@ class PoseMatrices:
     def __len__(self) -> int:
         return max(len(self.position), len(self.matrix))
 
-    def full(self) -> "PoseMatrices":
-        """Both arrays with one row per pose (contiguous)."""
-        n = len(self)
+    def full(self, n: int | None = None) -> "PoseMatrices":
+        """Both arrays with one row per pose (``n`` rows if given; contiguous)."""
+        n = len(self) if n is None else n
         return PoseMatrices(np.ascontiguousarray(np.broadcast_to(self.position, (n, 3))),
                             np.ascontiguousarray(np.broadcast_to(self.matrix, (n, 3, 3))))
 

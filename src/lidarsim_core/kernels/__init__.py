@@ -81,7 +81,7 @@ def warm_up() -> bool:
         return False
     import numpy as np
 
-    from .cull import cull_posed
+    from .cull import cull_posed, motion_bound
     from .poses import chain_matrices, look_at_matrices
     from .philox import ray_uniforms
     from .raycast import embree_rays, refine_hits
@@ -109,6 +109,7 @@ def warm_up() -> bool:
     cull_posed(one, np.eye(3)[None], one, np.eye(3)[None], one, index,
                np.zeros(1, dtype=np.bool_), box, -box, np.full(1, -1, dtype=np.int64), index,
                0.0)
+    motion_bound(np.eye(3)[None], one, np.eye(3)[None], one, 0, 1.0)
     chain_matrices(np.zeros(1), np.array([[0.0, 0.0, 0.0, 1.0]] * 2), one, np.ones(1))
     look_at_matrices(one, np.zeros(3), np.array([0.0, 0.0, 1.0]))
     return True

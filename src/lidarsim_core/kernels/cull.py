@@ -196,3 +196,42 @@ def cull_posed(directions, sensor_rotation, sensor_position, rotation, position,
             keep[kept] = i
             kept += 1
     return keep[:kept]
+
+
+@njit(nogil=True, cache=True)
+def motion_bound(sensor_rotation, sensor_position, rotation, position, reference,
+                 reach):  # noqa: ANN001, ANN201
+    """How far any point within ``reach`` of a target's origin strays, in the sensor frame,
+    from where the ``reference`` pose puts it: the largest ``‖Mᵢ − M₀‖_F · reach + |oᵢ − o₀|``
+    over the N poses, with ``Mᵢ = Rsᵢᵀ Rtᵢ`` and ``oᵢ = Rsᵢᵀ (ptᵢ − psᵢ)`` (the Frobenius
+    norm bounds the spectral one). Each array holds N rows or one (shared)."""
+    n = max(sensor_rotation.shape[0], sensor_position.shape[0], rotation.shape[0],
+            position.shape[0])
+    m0 = np.empty((3, 3))
+    o0 = np.empty(3)
+    m = np.empty((3, 3))
+    o = np.empty(3)
+    worst = 0.0
+    for i in range(-1, n):
+        k = reference if i < 0 else i
+        rs = sensor_rotation[k if sensor_rotation.shape[0] > 1 else 0]
+        rt = rotation[k if rotation.shape[0] > 1 else 0]
+        ps = sensor_position[k if sensor_position.shape[0] > 1 else 0]
+        pt = position[k if position.shape[0] > 1 else 0]
+        dx, dy, dz = pt[0] - ps[0], pt[1] - ps[1], pt[2] - ps[2]
+        for a in range(3):
+            o[a] = rs[0, a] * dx + rs[1, a] * dy + rs[2, a] * dz
+            for b in range(3):
+                m[a, b] = rs[0, a] * rt[0, b] + rs[1, a] * rt[1, b] + rs[2, a] * rt[2, b]
+        if i < 0:
+            m0[:, :] = m
+            o0[:] = o
+            continue
+        frob = 0.0
+        shift = 0.0
+        for a in range(3):
+            shift += (o[a] - o0[a]) ** 2
+            for b in range(3):
+                frob += (m[a, b] - m0[a, b]) ** 2
+        worst = max(worst, math.sqrt(frob) * reach + math.sqrt(shift))
+    return worst
