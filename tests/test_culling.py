@@ -172,3 +172,41 @@ def test_cull_tree_encloses_every_triangle_and_children_sit_in_parents():
     for node in np.flatnonzero(child >= 0):
         for c in (child[node], child[node] + 1):
             assert (lo[c] >= lo[node]).all() and (hi[c] <= hi[node]).all()
+
+
+def _spinning_far() -> dict:
+    """Envisat 40 m away spinning at 15 °/s about its long axis, as one 0.3 s piece: the cube
+    map of the middle pose needs its boxes grown by the motion."""
+    data = _demo(scan={"duration_s": 0.3}, noise=[])  # no angular error to hide the motion
+    data["targets"][0].pop("pose")
+    data["targets"][0]["trajectory"] = {
+        "kind": "constant_velocity", "position_m": [40, 0, 0],
+        "euler_deg": [0, 0, 90], "angular_velocity_deg_s": [0, 15.0, 0.0]}
+    return data
+
+
+def test_moving_grid_is_used_and_its_motion_growth_is_needed(monkeypatch):
+    sim = Simulation(scenario_from_dict(_spinning_far()))
+    used = []
+    original = PulseCuller._moving_grid
+
+    def spy(self, *args):
+        grid = original(self, *args)
+        used.append(grid is not None)
+        return grid
+
+    monkeypatch.setattr(PulseCuller, "_moving_grid", spy)
+    monkeypatch.setenv("LIDARSIM_THREADS", "1")
+    culled = sim.run_frame(0, chunk_rays=1_000_000)
+    assert used and all(used)
+    sim.culler, culler = None, sim.culler
+    every_pulse = sim.run_frame(0, chunk_rays=1_000_000)
+    for name, column in every_pulse.columns.items():
+        np.testing.assert_array_equal(culled[name], column, err_msg=name)
+    # without growing the boxes by the motion, pulses that hit are lost
+    import lidarsim_core.kernels.cull as kernel_cull
+
+    monkeypatch.setattr(kernel_cull, "motion_bound", lambda *args: 0.0)
+    sim.culler = culler
+    culler._grids.clear()
+    assert len(sim.run_frame(0, chunk_rays=1_000_000)) < len(every_pulse)
