@@ -16,9 +16,16 @@ can reach only a target whose boxes (:func:`cull_tree`), grown by ``margin`` tim
 farthest distance to the target's bounding box, the nominal ray meets. When the sensor and
 every target hold one pose for a whole piece (static scenes, ``motion: frozen``), the grown
 leaf boxes are projected once onto a cube map of directions and each pulse costs one lookup
-(:func:`lidarsim_core.kernels.cull.direction_grid`); otherwise each pulse's nominal ray is
-tested against the box tree in each target's frame. The tests run scans with and without
-culling and compare every column.
+(:func:`lidarsim_core.kernels.cull.direction_grid`). With a pose per pulse (tumbling
+targets, moving sensors) the map is built at the piece's middle pose with every box also grown
+by how far any point of the target strays, relative to the sensor, from where that pose puts it
+during the piece (:func:`lidarsim_core.kernels.cull.motion_bound`: ``‖Mᵢ − M₀‖_F`` times the
+target's reach plus the shift of its origin, with ``Mᵢ`` the body→sensor rotation; a box grown
+by ``d`` in the body frame holds every point that moves by at most ``d``). When a target is
+nearer than its own size (its boxes would straddle the map's faces) or moves by more than a
+tenth of it, each pulse's nominal ray is tested against the box tree in each target's frame
+at its own pose instead (:func:`lidarsim_core.kernels.cull.cull_posed`). The tests run scans
+with and without culling and compare every column.
 
 Culling is used when the compiled kernels are (:mod:`lidarsim_core.kernels`) and every
 ray-stage noise model describes itself through
