@@ -146,7 +146,8 @@ def _matvec(matrices: np.ndarray, vectors: np.ndarray) -> np.ndarray:
     return out
 
 
-def rotate(poses: "Poses | PoseMatrices", vectors: np.ndarray, *, inverse: bool = False) -> np.ndarray:
+def rotate(poses: "Poses | PoseMatrices", vectors: np.ndarray, *,
+           inverse: bool = False) -> np.ndarray:
     """Rotate (N, 3) vectors by ``poses`` (body → scene, or back with ``inverse``).
 
     ``poses`` holds one pose (applied to every row) or N. Both cases use the same arithmetic,
