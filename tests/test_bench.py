@@ -5,6 +5,8 @@ from __future__ import annotations
 import json
 import math
 
+import numpy as np
+
 import pytest
 from typer.testing import CliRunner
 
@@ -69,17 +71,93 @@ FAKE = {"machine": {"cpus": 2, "threads": 2, "python": "3", "numpy": "2", "embre
                                "bare_embree_1thread": None, "bare_embree": None,
                                "simulate_backend": "numpy", "simulate": 1.2e6,
                                "simulate_over_bare": None}}}
+SUITE = {"duration_s": 0.1, "rounds": 2, "scenes": {"tumbling-risley": {
+    "description": "tumbling", "rays_emitted": 10000, "triangles": 9884, "simulate": 2.0e6,
+    "simulate_1thread": 1.5e6, "bare_embree": 2.0e7, "bare_embree_1thread": 1.2e7,
+    "simulate_over_bare": 0.1, "simulate_over_bare_1thread": 0.125,
+    "stages_1thread": {"ns_per_ray": {"pattern": 40, "poses": 30, "cull": 20, "cast": 20,
+                                      "measurement": 60, "record": 10},
+                       "pulses_after_cull": 0.16}}},
+    "targets": {"min_simulate_over_bare": 0.1, "tumbling_over_static_rose": None,
+                "tumbling_over_static_risley": 0.7, "risley_over_rose_static": None},
+    "dataset": {"frames": 20, "in_memory_frames_per_s": 50.0, "dataset_frames_per_s": 45.0,
+                "dataset_over_in_memory": 0.9}}
 
 
 @pytest.mark.parametrize("as_json", [True, False])
-def test_cli_prints_the_benchmark(monkeypatch, as_json):
+@pytest.mark.parametrize("with_suite", [False, True])
+def test_cli_prints_the_benchmark(monkeypatch, as_json, with_suite):
     from lidarsim_core.cli import _load_command_modules, app
 
     _load_command_modules()
-    monkeypatch.setattr(bench, "run_benchmark", lambda quick=False: FAKE)
+    fake = {**FAKE, "suite": SUITE} if with_suite else FAKE
+    monkeypatch.setattr(bench, "run_benchmark", lambda quick=False: fake)
     result = CliRunner().invoke(app, ["bench", "--quick"] + (["--json"] if as_json else []))
     assert result.exit_code == 0, result.output
     if as_json:
-        assert json.loads(result.output) == FAKE
+        assert json.loads(result.output) == fake
     else:
         assert "envisat" in result.output and "1.50M" in result.output
+        if with_suite:
+            for text in ("tumbling-risley", "2.00M", "0.12", "poses 30", "0.70 (Risley)",
+                         "45.0 frames/s"):
+                assert text in result.output, text
+
+
+def test_suite_scene_figures_are_consistent():
+    from lidarsim_core import bench_suite
+
+    scene = bench_suite.bench_suite_scene("tumbling-rose", duration_s=0.01, rounds=1)
+    assert scene["rays_emitted"] == 1000 and scene["rays_cast"] == 1000
+    assert scene["simulate"] > 0 and scene["simulate_1thread"] > 0
+    stages = scene["stages_1thread"]
+    assert set(stages["ns_per_ray"]) == {"pattern", "poses", "cull", "cast", "measurement",
+                                         "record"}
+    assert all(v >= 0 for v in stages["ns_per_ray"].values())
+    assert stages["ns_per_ray"]["poses"] > 0  # the tumbling target has a pose per ray
+    assert 0 < stages["pulses_after_cull"] <= 1
+    for suffix in ("", "_1thread"):
+        bare = scene[f"bare_embree{suffix}"]
+        if bare is None:
+            assert scene[f"simulate_over_bare{suffix}"] is None
+        else:
+            assert math.isclose(scene[f"simulate_over_bare{suffix}"],
+                                scene[f"simulate{suffix}"] / bare)
+
+
+def test_suite_casts_every_sub_ray_and_both_targets():
+    from lidarsim_core import bench_suite
+    from lidarsim_core.pipeline import Simulation
+    from lidarsim_core.scenario import scenario_from_dict
+
+    def sim(name):
+        data = bench_suite.SUITE[name][1](0.01)
+        return Simulation(scenario_from_dict(data, source="<test>"))
+
+    beam = sim("divergence-7")
+    (mesh, origins, directions), = bench_suite.cast_rays(beam)
+    assert len(directions) == 7 * 1000 and beam.rays_per_pulse == 7
+    np.testing.assert_allclose(np.linalg.norm(directions, axis=1), 1.0, atol=1e-12)
+    two = bench_suite.cast_rays(sim("two-targets"))
+    assert [m.name for m, _, _ in two] == [t.mesh.name for t in sim("two-targets").targets]
+    assert all(len(o) == 1000 for _, o, _ in two)
+
+
+def test_suite_targets_and_dataset_throughput():
+    from lidarsim_core import bench_suite
+
+    scenes = {"static-demo": {"simulate": 10.0, "simulate_over_bare": 0.4,
+                              "simulate_over_bare_1thread": 0.3},
+              "tumbling-rose": {"simulate": 6.0, "simulate_over_bare": 0.6,
+                                "simulate_over_bare_1thread": None},
+              "static-risley": {"simulate": 4.0}}
+    targets = bench_suite.suite_targets(scenes)
+    assert targets["min_simulate_over_bare"] == 0.3
+    assert targets["tumbling_over_static_rose"] == 0.6
+    assert targets["risley_over_rose_static"] == 0.4
+    assert targets["tumbling_over_static_risley"] is None
+    data = bench_suite.bench_dataset(frames=3, rounds=1)
+    assert data["frames"] == 3
+    assert data["in_memory_frames_per_s"] > 0 and data["dataset_frames_per_s"] > 0
+    assert math.isclose(data["dataset_over_in_memory"],
+                        data["dataset_frames_per_s"] / data["in_memory_frames_per_s"])

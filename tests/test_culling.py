@@ -94,7 +94,29 @@ SCENES = {
     "frozen-risley": lambda: scenario_from_dict(_demo(
         sensor={"datasheet": "livox-mid70", "pose": {"position_m": [0, 0, 0]}},
         scan={"duration_s": 0.05, "motion": "frozen"})),
+    # the benchmark's realistic scenes: per-ray target poses seen through the Risley prisms,
+    # a spinning scanner and a Risley sensor both moving and turning, beam divergence
+    "tumbling-risley": lambda: _suite("tumbling-risley", 0.05),
+    "vlp16-circling": lambda: _suite("vlp16-circling-15m", 0.15),
+    "flyaround-risley": lambda: _suite("flyaround-50m", 0.05),
+    "torque-free-fast-spin": lambda: scenario_from_dict(_torque_free()),
 }
+
+
+def _suite(name: str, duration: float):
+    from lidarsim_core.bench_suite import SUITE
+
+    return scenario_from_dict(SUITE[name][1](duration), source=f"<{name}>")
+
+
+def _torque_free() -> dict:
+    """A triaxial body spinning fast (30 °/s) and close: poses change a lot within a piece."""
+    data = _demo(scan={"duration_s": 0.1})
+    data["targets"][0].pop("pose")
+    data["targets"][0]["trajectory"] = {
+        "kind": "torque_free", "position_m": [12, 0, 0], "inertia_kg_m2": [17000, 124000, 129000],
+        "angular_velocity_deg_s": [20, 5, 30], "centre_of_mass_m": [0, 0, 2]}
+    return data
 
 
 @pytest.mark.parametrize("scene", sorted(SCENES))
@@ -163,3 +185,41 @@ def test_cull_tree_encloses_every_triangle_and_children_sit_in_parents():
     for node in np.flatnonzero(child >= 0):
         for c in (child[node], child[node] + 1):
             assert (lo[c] >= lo[node]).all() and (hi[c] <= hi[node]).all()
+
+
+def _spinning_far() -> dict:
+    """Envisat 40 m away spinning at 15 °/s about its long axis, as one 0.3 s piece: the cube
+    map of the middle pose needs its boxes grown by the motion."""
+    data = _demo(scan={"duration_s": 0.3}, noise=[])  # no angular error to hide the motion
+    data["targets"][0].pop("pose")
+    data["targets"][0]["trajectory"] = {
+        "kind": "constant_velocity", "position_m": [40, 0, 0],
+        "euler_deg": [0, 0, 90], "angular_velocity_deg_s": [0, 15.0, 0.0]}
+    return data
+
+
+def test_moving_grid_is_used_and_its_motion_growth_is_needed(monkeypatch):
+    sim = Simulation(scenario_from_dict(_spinning_far()))
+    used = []
+    original = PulseCuller._moving_grid
+
+    def spy(self, *args):
+        grid = original(self, *args)
+        used.append(grid is not None)
+        return grid
+
+    monkeypatch.setattr(PulseCuller, "_moving_grid", spy)
+    monkeypatch.setenv("LIDARSIM_THREADS", "1")
+    culled = sim.run_frame(0, chunk_rays=1_000_000)
+    assert used and all(used)
+    sim.culler, culler = None, sim.culler
+    every_pulse = sim.run_frame(0, chunk_rays=1_000_000)
+    for name, column in every_pulse.columns.items():
+        np.testing.assert_array_equal(culled[name], column, err_msg=name)
+    # without growing the boxes by the motion, pulses that hit are lost
+    import lidarsim_core.kernels.cull as kernel_cull
+
+    monkeypatch.setattr(kernel_cull, "motion_bound", lambda *args: 0.0)
+    sim.culler = culler
+    culler._grids.clear()
+    assert len(sim.run_frame(0, chunk_rays=1_000_000)) < len(every_pulse)

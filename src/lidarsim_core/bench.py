@@ -315,11 +315,14 @@ def bench_divergence(detail: str, *, duration_s: float = 0.2, sub_rays: int = 16
 
 
 def run_benchmark(*, quick: bool = False, scenes: dict[str, str] | None = None,
-                  duration_s: float | None = None) -> dict[str, Any]:
+                  duration_s: float | None = None,
+                  suite: bool | list[str] | None = None) -> dict[str, Any]:
     """Benchmark every scene; ``quick`` scans 0.2 s with fewer repetitions (a smoke test).
 
     ``scenes`` (name → Envisat detail, or a mapping with ``detail`` and ``range_m``) and
-    ``duration_s`` override :data:`SCENES` and the scan time.
+    ``duration_s`` override :data:`SCENES` and the scan time. ``suite``: the realistic scenes
+    of :mod:`lidarsim_core.bench_suite` (True: all, or a list of names; default: all unless
+    ``scenes`` is given), under the key ``suite``.
 
     Returns
     -------
@@ -347,10 +350,18 @@ def run_benchmark(*, quick: bool = False, scenes: dict[str, str] | None = None,
     duration = duration_s or duration
     specs = {name: {"detail": spec} if isinstance(spec, str) else dict(spec)
              for name, spec in (scenes or SCENES).items()}
-    return {"machine": machine, "quick": quick,
-            "scenes": {name: bench_scene(spec["detail"], duration_s=duration, rounds=rounds,
-                                         range_m=spec.get("range_m"))
-                       for name, spec in specs.items()},
-            "divergence": bench_divergence(next(iter(specs.values()))["detail"],
-                                           duration_s=min(duration, 0.2),
-                                           rounds=max(2, rounds // 2))}
+    result = {"machine": machine, "quick": quick,
+              "scenes": {name: bench_scene(spec["detail"], duration_s=duration, rounds=rounds,
+                                           range_m=spec.get("range_m"))
+                         for name, spec in specs.items()},
+              "divergence": bench_divergence(next(iter(specs.values()))["detail"],
+                                             duration_s=min(duration, 0.2),
+                                             rounds=max(2, rounds // 2))}
+    if suite is None:
+        suite = scenes is None
+    if suite:
+        from .bench_suite import run_suite
+
+        result["suite"] = run_suite(quick=quick,
+                                    scenes=None if suite is True else list(suite))
+    return result

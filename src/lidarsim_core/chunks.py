@@ -25,6 +25,7 @@ from typing import Callable, Iterable, Iterator, TypeVar
 import numpy as np
 
 from .poses import Poses
+from .posing import PoseMatrices
 
 T = TypeVar("T")
 R = TypeVar("R")
@@ -145,18 +146,21 @@ def _matvec(matrices: np.ndarray, vectors: np.ndarray) -> np.ndarray:
     return out
 
 
-def rotate(poses: Poses, vectors: np.ndarray, *, inverse: bool = False) -> np.ndarray:
+def rotate(poses: "Poses | PoseMatrices", vectors: np.ndarray, *,
+           inverse: bool = False) -> np.ndarray:
     """Rotate (N, 3) vectors by ``poses`` (body → scene, or back with ``inverse``).
 
     ``poses`` holds one pose (applied to every row) or N. Both cases use the same arithmetic,
     so a vector's result depends only on its own pose, not on how many rows share the call.
     """
-    matrices = poses.rotation.as_matrix().reshape(-1, 3, 3)
+    matrices = getattr(poses, "matrix", None)  # PoseMatrices: already matrices
+    if matrices is None:
+        matrices = poses.rotation.as_matrix().reshape(-1, 3, 3)
     if inverse:
         matrices = matrices.transpose(0, 2, 1)
     return _matvec(matrices, np.asarray(vectors, dtype=np.float64).reshape(-1, 3))
 
 
-def to_body(poses: Poses, points: np.ndarray) -> np.ndarray:
+def to_body(poses: "Poses | PoseMatrices", points: np.ndarray) -> np.ndarray:
     """Map (N, 3) (or (1, 3)) scene points into the body frame of ``poses``."""
     return rotate(poses, points - poses.position, inverse=True)

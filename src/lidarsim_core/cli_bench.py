@@ -76,7 +76,51 @@ def _bench(as_json: bool, quick: bool) -> None:
                       f"{1e6 * div['time_per_pulse_s']:.2f} µs per pulse against "
                       f"{1e6 * div['time_per_k_single_rays_s']:.2f} µs for "
                       f"{div['sub_rays']} single rays (ratio {div['ratio']:.2f}).")
+    if result.get("suite"):
+        _print_suite(console, result["suite"], machine["threads"])
     console.print("backend columns: backend.cast on the scan's rays; bare: plain embreex on "
                   "the same rays in float32; simulate: Simulation.run_frame with the "
                   f"'{next(iter(scenes.values()))['simulate_backend']}' backend, from ray "
                   "indices to the point cloud. --json gives every figure.")
+
+
+def _ratio(value: float | None) -> str:
+    return "-" if value is None else f"{value:.2f}"
+
+
+def _print_suite(console: Any, suite: dict[str, Any], threads: int) -> None:
+    """The realistic scenes (:mod:`lidarsim_core.bench_suite`): a table, the stages and the
+    issue's targets."""
+    from rich.table import Table
+
+    table = Table(show_edge=False, title="Realistic scenes: emitted rays per second")
+    columns = ["scene", "rays", "faces", "sim 1t", f"sim {threads}t", "bare 1t",
+               f"bare {threads}t", "sim/bare 1t", f"sim/bare {threads}t"]
+    for col in columns:
+        table.add_column(col, justify="left" if col == "scene" else "right", no_wrap=True)
+    for name, s in suite["scenes"].items():
+        table.add_row(name, f"{s['rays_emitted']:,}", f"{s['triangles']:,}",
+                      _rate(s["simulate_1thread"]), _rate(s["simulate"]),
+                      _rate(s["bare_embree_1thread"]), _rate(s["bare_embree"]),
+                      _ratio(s["simulate_over_bare_1thread"]), _ratio(s["simulate_over_bare"]))
+    console.print(table)
+    for name, s in suite["scenes"].items():
+        stages = s.get("stages_1thread")
+        if stages:
+            parts = ", ".join(f"{k} {v:.0f}" for k, v in stages["ns_per_ray"].items())
+            console.print(f"{name}: {s['description']}. One thread, ns per emitted ray: "
+                          f"{parts}; pulses left after culling "
+                          f"{100 * (stages['pulses_after_cull'] or 0):.1f} %")
+    targets = suite.get("targets", {})
+    console.print("Targets: lowest sim/bare "
+                  f"{_ratio(targets.get('min_simulate_over_bare'))} (goal 0.5); tumbling over "
+                  f"static {_ratio(targets.get('tumbling_over_static_rose'))} (rose), "
+                  f"{_ratio(targets.get('tumbling_over_static_risley'))} (Risley) (goal 0.5); "
+                  f"Risley over rose {_ratio(targets.get('risley_over_rose_static'))} "
+                  "(goal 0.5).")
+    data = suite.get("dataset")
+    if data:
+        console.print(f"Dataset, {data['frames']} frames of the tumbling scene: in memory "
+                      f"{data['in_memory_frames_per_s']:.1f} frames/s, serial lidarsim "
+                      f"dataset {data['dataset_frames_per_s']:.1f} frames/s (ratio "
+                      f"{data['dataset_over_in_memory']:.2f}, goal 0.8).")

@@ -16,9 +16,16 @@ can reach only a target whose boxes (:func:`cull_tree`), grown by ``margin`` tim
 farthest distance to the target's bounding box, the nominal ray meets. When the sensor and
 every target hold one pose for a whole piece (static scenes, ``motion: frozen``), the grown
 leaf boxes are projected once onto a cube map of directions and each pulse costs one lookup
-(:func:`lidarsim_core.kernels.cull.direction_grid`); otherwise each pulse's nominal ray is
-tested against the box tree in each target's frame. The tests run scans with and without
-culling and compare every column.
+(:func:`lidarsim_core.kernels.cull.direction_grid`). With a pose per pulse (tumbling
+targets, moving sensors) the map is built at the piece's middle pose with every box also grown
+by how far any point of the target strays, relative to the sensor, from where that pose puts it
+during the piece (:func:`lidarsim_core.kernels.cull.motion_bound`: ``‖Mᵢ − M₀‖_F`` times the
+target's reach plus the shift of its origin, with ``Mᵢ`` the body→sensor rotation; a box grown
+by ``d`` in the body frame holds every point that moves by at most ``d``). When a target is
+nearer than its own size (its boxes would straddle the map's faces) or moves by more than a
+tenth of it, each pulse's nominal ray is tested against the box tree in each target's frame
+at its own pose instead (:func:`lidarsim_core.kernels.cull.cull_posed`). The tests run scans
+with and without culling and compare every column.
 
 Culling is used when the compiled kernels are (:mod:`lidarsim_core.kernels`) and every
 ray-stage noise model describes itself through
@@ -41,6 +48,7 @@ from . import kernels
 from .mesh import Mesh
 from .noise.outliers import SpuriousReturnModel
 from .patterns.base import RayBatch
+from .posing import PiecePoses, piece_poses
 from .rng import MAX_ABS_NORMAL
 
 if TYPE_CHECKING:
@@ -89,44 +97,84 @@ class PulseCuller:
 
     def keep(self, sim: "Simulation", batch: RayBatch, t_frame: float) -> np.ndarray:
         """Rows of ``batch`` whose pulses may reach a target (int64, ascending)."""
-        from .kernels.cull import cull_by_grid, cull_pulses
+        from .kernels.cull import cull_by_grid, cull_posed
 
-        sensor = sim._chunk_poses(sim.sensor_trajectory, batch.t, t_frame)
-        sensor_rotation = sensor.rotation.as_matrix().reshape(-1, 3, 3)
-        rotations, origins, grows, trees, roots = [], [], [], [], []
-        nodes = 0
-        for target in sim.targets:
-            poses = sim._chunk_poses(target.trajectory, batch.t, t_frame)
-            to_body = poses.rotation.as_matrix().reshape(-1, 3, 3).transpose(0, 2, 1)
-            rotations.append(to_body @ sensor_rotation)
-            origin = (to_body @ (sensor.position - poses.position)[..., None])[..., 0]
-            origins.append(origin)
-            lo, hi, child = cull_tree(target.mesh)
-            # farthest corner of the target's box from the origin: the chord between two rays
-            # at angle a is below s·a for every distance s up to it; the last terms cover the
-            # rounding of the box test itself
-            far = np.sqrt((np.maximum(np.abs(lo[0] - origin), np.abs(hi[0] - origin)) ** 2
-                           ).sum(axis=1))
-            grows.append(far * (self.margin_rad + 1e-9) + 1e-9)
-            trees.append((lo, hi, np.where(child >= 0, child + nodes, -1)))
-            roots.append(nodes)
-            nodes += len(lo)
-        m = max(len(r) for r in rotations)
+        posed = piece_poses(sim, batch, t_frame)
+        m = max(len(posed.sensor), *(len(p) for p in posed.targets))
+        trees = [cull_tree(target.mesh) for target in sim.targets]
+        roots = np.cumsum([0] + [len(lo) for lo, _, _ in trees])[:-1]
         directions = np.ascontiguousarray(batch.direction, dtype=np.float64)
-        if m == 1:  # one pose for the piece: look the directions up in a cube map
-            grid = self._grid(rotations, origins, grows, trees)
-            if grid is None:  # the sensor is inside a target's box: nothing to cull
-                return np.arange(len(batch), dtype=np.int64)
-            return cull_by_grid(directions, grid)
-        return cull_pulses(directions,
-                           np.ascontiguousarray([np.broadcast_to(r, (m, 3, 3))
-                                                 for r in rotations]),
-                           np.ascontiguousarray([np.broadcast_to(o, (m, 3)) for o in origins]),
-                           np.ascontiguousarray([np.broadcast_to(g, (m,)) for g in grows]),
-                           np.concatenate([t[0] for t in trees]),
-                           np.concatenate([t[1] for t in trees]),
-                           np.concatenate([t[2] for t in trees]), np.array(roots, dtype=np.int64))
+        if m > 1:
+            grid = self._moving_grid(posed, trees, m)
+            if grid is not None:
+                return cull_by_grid(directions, grid)
+            # near or fast targets: the frame changes are made per pulse in the kernel, which
+            # indexes every pose array by pulse
+            posed = PiecePoses(posed.sensor.full(m), tuple(p.full(m) for p in posed.targets))
+            moving = np.array([len(p) > 1 for p in posed.targets])
+            first = np.cumsum([0] + [len(p) for p in posed.targets])[:-1]
+            return cull_posed(
+                directions, posed.sensor.matrix, posed.sensor.position,
+                np.ascontiguousarray(np.concatenate([p.matrix for p in posed.targets])),
+                np.ascontiguousarray(np.concatenate([p.position for p in posed.targets])),
+                first, moving, np.concatenate([t[0] for t in trees]),
+                np.concatenate([t[1] for t in trees]),
+                np.concatenate([np.where(t[2] >= 0, t[2] + root, -1)
+                                for t, root in zip(trees, roots)]),
+                roots, self.margin_rad)
+        # one pose for the piece: look the directions up in a cube map
+        grid = self._pose_grid(posed, 0, [0.0] * len(trees), trees)
+        if grid is None:  # the sensor is inside a target's box: nothing to cull
+            return np.arange(len(batch), dtype=np.int64)
+        return cull_by_grid(directions, grid)
 
+    def _pose_grid(self, posed: PiecePoses, k: int, motion: list[float],
+                   trees: list[tuple[np.ndarray, ...]]) -> np.ndarray | None:
+        """The cube map of the reachable directions at pose row ``k``, every target's boxes
+        also grown by its ``motion`` (m)."""
+        sensor_rotation = posed.sensor.matrix[min(k, len(posed.sensor.matrix) - 1)]
+        sensor_position = posed.sensor.position[min(k, len(posed.sensor.position) - 1)]
+        rotations, origins, grows = [], [], []
+        for poses, (lo, hi, _), moved in zip(posed.targets, trees, motion):
+            to_body = poses.matrix[min(k, len(poses.matrix) - 1)].T
+            rotations.append((to_body @ sensor_rotation)[None])
+            origin = to_body @ (sensor_position - poses.position[min(k, len(poses.position) - 1)])
+            origins.append(origin[None])
+            # farthest corner of the target's box from the origin (plus how far the target
+            # moves): the chord between two rays at angle a is below s·a for every distance s
+            # up to it; the last terms cover the rounding of the box test itself
+            far = np.sqrt((np.maximum(np.abs(lo[0] - origin), np.abs(hi[0] - origin)) ** 2
+                           ).sum()) + moved
+            grows.append(np.array([far * (self.margin_rad + 1e-9) + moved * (1 + 1e-9)
+                                   + 1e-9]))
+        return self._grid(rotations, origins, grows, trees)
+
+    def _moving_grid(self, posed: PiecePoses, trees: list[tuple[np.ndarray, ...]], m: int
+                     ) -> np.ndarray | None:
+        """With a pose per pulse, the cube map at the piece's middle pose with every box grown
+        by how far the target moves relative to the sensor during the piece (a box grown by
+        ``d`` in the body frame holds every point that strays by at most ``d``); None when a
+        target is nearer than its size (its boxes would straddle the map's faces and fill
+        them) or moves more than a tenth of its size (or the sensor is inside a box)."""
+        from .kernels.cull import motion_bound
+
+        middle = m // 2
+        sensor = posed.sensor.position[min(middle, len(posed.sensor.position) - 1)]
+        motion = []
+        for poses, (lo, hi, _) in zip(posed.targets, trees):
+            size = float(np.linalg.norm(hi[0] - lo[0]))
+            rotation = poses.matrix[min(middle, len(poses.matrix) - 1)]
+            centre = poses.position[min(middle, len(poses.position) - 1)] + \
+                rotation @ (0.5 * (lo[0] + hi[0]))
+            if float(np.linalg.norm(centre - sensor)) < size:
+                return None
+            reach = float(np.sqrt((np.maximum(np.abs(lo[0]), np.abs(hi[0])) ** 2).sum()))
+            moved = motion_bound(posed.sensor.matrix, posed.sensor.position, poses.matrix,
+                                 poses.position, middle, reach)
+            if not moved <= 0.1 * size:
+                return None
+            motion.append(moved * (1 + 1e-9) + 1e-9)
+        return self._pose_grid(posed, middle, motion, trees)
 
     def _grid(self, rotations: list[np.ndarray], origins: list[np.ndarray],
               grows: list[np.ndarray], trees: list[tuple[np.ndarray, ...]]

@@ -56,7 +56,7 @@ from .noise.outliers import SpuriousReturnModel
 from .patterns.base import RayBatch, ScanPattern
 from .plugins import get_registry
 from .pointcloud import FrameInfo, PointCloud
-from .poses import Poses
+from .posing import PoseMatrices, piece_poses, pose_matrices, with_piece_poses
 from .radiometry import LinkBudget, detection_range_limit, link_budget
 from .registry import Registry
 from .returns import ReturnsConfig, SubRayHits
@@ -125,7 +125,7 @@ class Simulation:
 
     def __init__(self, scenario: Scenario, registry: Registry | None = None) -> None:
         self.scenario = scenario
-        self._fixed_poses: dict[tuple[int, float | None], Poses] = {}
+        self._fixed_poses: dict[tuple[int, float | None], PoseMatrices] = {}
         registry = registry or get_registry()
         src = scenario.source
         self.sensor: SensorDatasheet = self._datasheet(scenario, registry)
@@ -278,6 +278,7 @@ class Simulation:
 
         def work(piece: tuple[int, int, int]) -> dict[str, np.ndarray]:
             batch = self.pattern.rays_for_indices(np.arange(piece[1], piece[2], dtype=np.int64))
+            batch = with_piece_poses(self, batch, t_frame)  # shared by culling and casting
             if self.culler is not None:  # only pulses that may reach a target go on
                 batch = batch.take(self.culler.keep(self, batch, t_frame))
             return self._process(batch, contexts, t_frame, frame)
@@ -303,18 +304,19 @@ class Simulation:
         if done:
             yield merged(done)
 
-    def _poses(self, trajectory: Trajectory, t: np.ndarray, t_frame: float) -> Poses:
+    def _poses(self, trajectory: Trajectory, t: np.ndarray, t_frame: float) -> PoseMatrices:
         if self.scenario.scan.motion == "frozen":
             t = np.full_like(t, t_frame)
         try:
-            return trajectory.poses_at(t)
+            return pose_matrices(trajectory, t)
         except LidarsimError:
             raise
         except Exception as exc:
             raise PluginError(f"trajectory '{trajectory.name}' failed: "
                               f"{type(exc).__name__}: {exc}") from exc
 
-    def _chunk_poses(self, trajectory: Trajectory, t: np.ndarray, t_frame: float) -> Poses:
+    def _chunk_poses(self, trajectory: Trajectory, t: np.ndarray, t_frame: float
+                     ) -> PoseMatrices:
         """Poses for a piece's rays: one pose (applied to all) when it cannot vary."""
         frozen = self.scenario.scan.motion == "frozen"
         if not (frozen or trajectory.is_static):
@@ -339,17 +341,15 @@ class Simulation:
         for model, ctx in zip(self.noise, contexts):
             flown = model.perturb_rays(flown, batch.index, ctx)
         axes = list(perpendicular_basis(flown)) if self.sub_rays is not None else []
-        sensor_poses = self._chunk_poses(self.sensor_trajectory, batch.t, t_frame)
-        origin_scene = sensor_poses.position
-        scene = [rotate(sensor_poses, vec) for vec in (flown, *axes)]
+        posed = piece_poses(self, batch, t_frame)
+        origin_scene = posed.sensor.position
+        scene = [rotate(posed.sensor, vec) for vec in (flown, *axes)]
         bodies = []
-        target_poses = []
-        for target in self.targets:
-            poses = self._chunk_poses(target.trajectory, batch.t, t_frame)
-            target_poses.append(poses)
+        for poses in posed.targets:
             bodies.append((to_body(poses, origin_scene),
                            [rotate(poses, vec, inverse=True) for vec in scene]))
-        return flown, axes, bodies, SceneRays(origin_scene, scene, sensor_poses, target_poses)
+        return flown, axes, bodies, SceneRays(origin_scene, scene, posed.sensor,
+                                              list(posed.targets))
 
     def _body_rays(self, batch: RayBatch, contexts: list[NoiseContext], t_frame: float
                    ) -> tuple[np.ndarray, list[tuple[np.ndarray, np.ndarray]]]:

@@ -9,11 +9,13 @@ number of frames.
 from __future__ import annotations
 
 import logging
+import queue
+import threading
 from contextlib import ExitStack, contextmanager
 from typing import Any, Callable, Iterable, Iterator
 
 from ..errors import ConfigError
-from .frames import FrameJob, run_frame_job
+from .frames import FrameJob, run_frame_job, simulate_frame_job, write_frame_job
 
 OnResult = Callable[[dict[str, Any]], None]
 
@@ -21,10 +23,132 @@ OnResult = Callable[[dict[str, Any]], None]
 IN_FLIGHT_PER_THREAD = 2
 
 
-def run_serial(jobs: Iterable[FrameJob], on_result: OnResult) -> None:
-    """Run the jobs one after another in this process."""
-    for job in jobs:
-        on_result(run_frame_job(job))
+def run_serial(jobs: Iterable[FrameJob], on_result: OnResult, *,
+               overlap: bool = True) -> None:
+    """Run the jobs one after another in this process.
+
+    With ``overlap`` (the default) a writer thread writes each frame's file, checksum and
+    sidecar while this thread simulates the next frame; at most :data:`WRITE_QUEUE` simulated
+    frames wait for it, so memory stays bounded. The files are the same to the bit (the
+    same code writes them, each atomically), ``on_result`` is called on this thread in frame
+    order, and an error or interrupt on either side stops both: the frame being written is
+    finished or left as a ``.part`` file, which the next run removes.
+    """
+    if not overlap:
+        for job in jobs:
+            on_result(run_frame_job(job))
+        return
+    writer = _FrameWriter()
+    try:
+        for job in jobs:
+            spool, info = simulate_frame_job(job)
+            writer.put(job, spool, info)  # waits while the queue is full
+            for result in writer.results():
+                on_result(result)
+        writer.finish()
+        for result in writer.results():
+            on_result(result)
+    finally:
+        writer.abandon()
+
+
+#: Simulated frames waiting for the writer threads of :func:`run_serial`.
+WRITE_QUEUE = 2
+#: Writer threads: a frame's write spends most of its time in ``fsync``, which releases the
+#: GIL, so two writers keep up with a simulation that is faster than one write.
+WRITERS = 2
+
+
+class _FrameWriter:
+    """The writer threads of :func:`run_serial`; results come back in submission order."""
+
+    def __init__(self) -> None:
+        self._queue: queue.Queue[Any] = queue.Queue(maxsize=WRITE_QUEUE)
+        self._lock = threading.Lock()
+        self._finished: dict[int, dict[str, Any]] = {}
+        self._submitted = 0
+        self._reported = 0
+        self._error: BaseException | None = None
+        self._stop = threading.Event()
+        self._threads = [threading.Thread(target=self._run, name=f"lidarsim-writer-{i}",
+                                          daemon=True) for i in range(WRITERS)]
+        for thread in self._threads:
+            thread.start()
+
+    def _run(self) -> None:
+        while True:
+            item = self._queue.get()
+            if item is None:
+                return
+            number, job, spool, info = item
+            if self._stop.is_set() or self._error is not None:
+                spool.close()  # stopping: drop what is left
+                continue
+            try:
+                result = write_frame_job(job, spool, info)
+            except BaseException as exc:  # reported on the simulating thread
+                with self._lock:
+                    self._error = self._error or exc
+                continue
+            with self._lock:
+                self._finished[number] = result
+
+    def _raise(self) -> None:
+        if self._error is not None:
+            raise self._error
+
+    def _alive(self) -> bool:
+        return any(thread.is_alive() for thread in self._threads)
+
+    def put(self, job: FrameJob, spool: Any, info: Any) -> None:
+        """Queue a simulated frame (after re-raising an error of a writer)."""
+        self._raise()
+        item = (self._submitted, job, spool, info)
+        while True:
+            try:
+                self._queue.put(item, timeout=0.1)
+                break
+            except queue.Full:
+                self._raise()
+        self._submitted += 1
+
+    def results(self) -> Iterator[dict[str, Any]]:
+        """The results written since the last call, in submission order."""
+        while True:
+            with self._lock:
+                result = self._finished.pop(self._reported, None)
+            if result is None:
+                self._raise()
+                return
+            self._reported += 1
+            yield result
+
+    def finish(self) -> None:
+        """Wait until every queued frame is written."""
+        for _ in self._threads:
+            self._queue.put(None)
+        while self._alive():
+            for thread in self._threads:
+                thread.join(0.1)
+        self._raise()
+
+    def abandon(self) -> None:
+        """Stop after the frames being written (no-op once finished)."""
+        if not self._alive():
+            return
+        self._stop.set()
+        while self._alive():
+            try:  # the threads close the spools they take, then meet a sentinel
+                self._queue.put(None, timeout=0.1)
+            except queue.Full:
+                continue
+        while True:  # close the spools nobody will write
+            try:
+                item = self._queue.get_nowait()
+            except queue.Empty:
+                break
+            if item is not None:
+                item[2].close()
 
 
 def _dask() -> Any:

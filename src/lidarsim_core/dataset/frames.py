@@ -84,8 +84,22 @@ def _simulation(job: FrameJob) -> Any:
     return sim
 
 
-def run_frame_job(job: FrameJob) -> dict[str, Any]:
-    """Simulate ``job.frame`` and write its file and sidecar atomically.
+def simulate_frame_job(job: FrameJob) -> tuple[PointSpool, Any]:
+    """Simulate ``job.frame`` into a :class:`~lidarsim_core.io.points.PointSpool` (the caller
+    closes it, usually through :func:`write_frame_job`); returns it and the frame's info."""
+    sim = _simulation(job)
+    info = sim.frame_info(job.frame)
+    spool = PointSpool(info, memory_limit=job.spool_memory)
+    try:
+        spool.extend(sim.iter_chunks(job.frame))
+    except BaseException:
+        spool.close()
+        raise
+    return spool, info
+
+
+def write_frame_job(job: FrameJob, spool: PointSpool, info: Any) -> dict[str, Any]:
+    """Write a simulated frame's file and sidecar atomically and close its spool.
 
     Returns
     -------
@@ -94,19 +108,22 @@ def run_frame_job(job: FrameJob) -> dict[str, Any]:
     """
     from ..plugins import get_registry
 
-    sim = _simulation(job)
-    exporter_cls = get_registry().get("exporter", job.exporter, field="format")
-    exporter = exporter_cls.from_config(job.exporter_options, field="exporter_options")
-    info = sim.frame_info(job.frame)
-    path = Path(job.path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with PointSpool(info, memory_limit=job.spool_memory) as spool:
-        spool.extend(sim.iter_chunks(job.frame))
+    with spool:
+        exporter_cls = get_registry().get("exporter", job.exporter, field="format")
+        exporter = exporter_cls.from_config(job.exporter_options, field="exporter_options")
+        path = Path(job.path)
+        path.parent.mkdir(parents=True, exist_ok=True)
         record = write_points_file(spool, path, exporter=exporter)
     _stats["frames"] += 1
     return {"sequence": job.sequence, "frame": job.frame, "file": record["file"],
             "points": record["points"], "rays": info.rays_emitted, "bytes": record["bytes"],
             "sha256": record["sha256"]}
+
+
+def run_frame_job(job: FrameJob) -> dict[str, Any]:
+    """Simulate ``job.frame`` and write its file and sidecar atomically (what a Dask worker
+    runs; see :func:`write_frame_job` for the result)."""
+    return write_frame_job(job, *simulate_frame_job(job))
 
 
 def worker_cache_info() -> dict[str, Any]:

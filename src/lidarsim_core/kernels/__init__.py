@@ -11,6 +11,11 @@ loops instead:
   the ray), the same arithmetic in the same order as the NumPy code;
 * :mod:`.trig` and :mod:`.rose`: the rose pattern with a sine and cosine that LLVM can inline
   (within 2 ulp of the C library's);
+* :mod:`.risley`: the Risley prisms' vector refraction, one prism at a time over every ray;
+  :mod:`.patterns`: firing schedules (time, slot, channel in one pass) and the spinning and
+  Lissajous directions;
+* :mod:`.poses`: per-ray rotations of the built-in trajectories (chains of rotations at
+  constant rates: tumbling, constant angular velocity; the look-at attitude);
 * :mod:`.cull`: a conservative test that skips pulses which cannot reach any target's
   bounding box, even after their angular error and beam divergence, before anything else is
   computed for them.
@@ -76,9 +81,12 @@ def warm_up() -> bool:
         return False
     import numpy as np
 
-    from .cull import cull_pulses
+    from .cull import cull_posed, motion_bound
+    from .poses import chain_matrices, look_at_matrices
     from .philox import ray_uniforms
     from .raycast import embree_rays, refine_hits
+    from .patterns import cycle_rays, lissajous_directions, spinning_directions
+    from .risley import risley_directions
     from .rose import rose_directions
     from .rotation import rotate_two_angles
 
@@ -87,13 +95,23 @@ def warm_up() -> bool:
     index = np.zeros(1, dtype=np.int64)
     ray_uniforms(np.zeros(2, dtype=np.uint64), index, 1)
     rose_directions(index, 1.0, 4.0, 0.5, 1.0, 5.0, 0.0)
+    two = np.ones(2)
+    cycle_rays(index, 1, 1.0, np.zeros(1), np.zeros(1, dtype=np.int16))
+    spinning_directions(np.zeros(1), index, 1.0, 0.0, 1.0, np.zeros(1), np.zeros(1))
+    lissajous_directions(np.zeros(1), 1.0, 0.0, 0.1, 1.0, 0.0, 0.1, 0.0)
+    risley_directions(np.zeros(1), index, one, 0.1 * two, two, two, two,
+                      np.array([True, False]), 1.5 * two)
     rotate_two_angles(one, np.zeros((1, 2)))
     embree_rays(one, one, np.zeros(3), 1.0, 1e-6)
     refine_hits(np.full(1, -1, dtype=np.int32), one, one, one, one, 1e-6,
                 np.empty(1, dtype=np.int64), np.empty(1), np.empty((1, 3)), 0)
     box = np.array([[-1.0, -1.0, -1.0]])
-    cull_pulses(one, np.eye(3)[None, None], one[None], np.zeros((1, 1)), box, -box,
-                np.full(1, -1, dtype=np.int64), index)
+    cull_posed(one, np.eye(3)[None], one, np.eye(3)[None], one, index,
+               np.zeros(1, dtype=np.bool_), box, -box, np.full(1, -1, dtype=np.int64), index,
+               0.0)
+    motion_bound(np.eye(3)[None], one, np.eye(3)[None], one, 0, 1.0)
+    chain_matrices(np.zeros(1), np.array([[0.0, 0.0, 0.0, 1.0]] * 2), one, np.ones(1))
+    look_at_matrices(one, np.zeros(3), np.array([0.0, 0.0, 1.0]))
     return True
 
 

@@ -55,49 +55,6 @@ def _meets_tree(o, inv, box_lo, box_hi, first_child, root, grow, stack):  # noqa
 
 
 @njit(nogil=True, cache=True)
-def cull_pulses(directions, rotation, origin, grow, box_lo, box_hi, first_child,
-                roots):  # noqa: ANN001, ANN201
-    """Indices of the pulses that may reach a target.
-
-    Parameters
-    ----------
-    directions
-        (N, 3) nominal directions in the sensor frame.
-    rotation, origin, grow
-        (T, M, 3, 3) sensor-to-body rotations, (T, M, 3) sensor origins in each target's
-        body frame and (T, M) distances by which its boxes grow; M is 1 (one pose for all
-        pulses) or N.
-    box_lo, box_hi, first_child
-        A binary tree of (B, 3) boxes in the targets' body frames; node ``k``'s children are
-        ``first_child[k]`` and the next node, -1 for a leaf.
-    roots
-        (T,) the root node of each target.
-    """
-    n = directions.shape[0]
-    keep = np.empty(n, dtype=np.int64)
-    kept = 0
-    stack = np.empty(2 * first_child.shape[0] + 2, dtype=np.int64)
-    inv = np.empty(3)
-    for i in range(n):
-        reach = False
-        dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
-        m = i if rotation.shape[1] > 1 else 0
-        for t in range(roots.shape[0]):
-            if reach:
-                break
-            r = rotation[t, m]
-            inv[0] = _inverse(r[0, 0] * dx + r[0, 1] * dy + r[0, 2] * dz)
-            inv[1] = _inverse(r[1, 0] * dx + r[1, 1] * dy + r[1, 2] * dz)
-            inv[2] = _inverse(r[2, 0] * dx + r[2, 1] * dy + r[2, 2] * dz)
-            reach = _meets_tree(origin[t, m], inv, box_lo, box_hi, first_child, roots[t],
-                                grow[t, m], stack)
-        if reach:
-            keep[kept] = i
-            kept += 1
-    return keep[:kept]
-
-
-@njit(nogil=True, cache=True)
 def direction_grid(corners, cells):  # noqa: ANN001, ANN201
     """A cube map of the directions that may meet any of the boxes, or None.
 
@@ -175,3 +132,106 @@ def cull_by_grid(directions, grid):  # noqa: ANN001, ANN201
             keep[kept] = i
             kept += 1
     return keep[:kept]
+
+
+
+@njit(nogil=True, cache=True)
+def cull_posed(directions, sensor_rotation, sensor_position, rotation, position, first, moving,
+               box_lo, box_hi, first_child, roots, margin):  # noqa: ANN001, ANN201
+    """Indices of the pulses that may reach a target, with poses per pulse: the frame changes
+    into each target's body frame are made per pulse here, without arrays of them.
+
+    Parameters
+    ----------
+    directions
+        (N, 3) nominal directions in the sensor frame.
+    sensor_rotation, sensor_position
+        (1 or N, 3, 3) body→scene rotations and (1 or N, 3) positions of the sensor.
+    rotation, position
+        Every target's poses one after the other: (P, 3, 3) and (P, 3); target ``t``'s
+        start at ``first[t]`` and hold N poses if ``moving[t]``, else one.
+    box_lo, box_hi, first_child, roots
+        A binary tree of (B, 3) boxes in the targets' body frames; node ``k``'s children are
+        ``first_child[k]`` and the next node, -1 for a leaf; ``roots[t]`` is target ``t``'s
+        root node.
+    margin
+        The largest angle (rad) between a flown (sub-)ray and its pulse's nominal direction;
+        a target's boxes grow by it times the farthest corner of its root box from the
+        sensor, plus 1e-9 m for the rounding of the box test.
+    """
+    n = directions.shape[0]
+    keep = np.empty(n, dtype=np.int64)
+    kept = 0
+    stack = np.empty(2 * first_child.shape[0] + 2, dtype=np.int64)
+    inv = np.empty(3)
+    o = np.empty(3)
+    sensor_moving = sensor_rotation.shape[0] > 1
+    for i in range(n):
+        s = i if sensor_moving else 0
+        rs = sensor_rotation[s]
+        dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
+        # the nominal direction in the scene frame
+        sx = rs[0, 0] * dx + rs[0, 1] * dy + rs[0, 2] * dz
+        sy = rs[1, 0] * dx + rs[1, 1] * dy + rs[1, 2] * dz
+        sz = rs[2, 0] * dx + rs[2, 1] * dy + rs[2, 2] * dz
+        reach = False
+        for t in range(roots.shape[0]):
+            if reach:
+                break
+            p = first[t] + (i if moving[t] else 0)
+            rt = rotation[p]
+            ox = sensor_position[s, 0] - position[p, 0]
+            oy = sensor_position[s, 1] - position[p, 1]
+            oz = sensor_position[s, 2] - position[p, 2]
+            root = roots[t]
+            far2 = 0.0
+            for a in range(3):  # origin and direction in the body frame: Rtᵀ v
+                o[a] = rt[0, a] * ox + rt[1, a] * oy + rt[2, a] * oz
+                inv[a] = _inverse(rt[0, a] * sx + rt[1, a] * sy + rt[2, a] * sz)
+                reach_a = max(abs(box_lo[root, a] - o[a]), abs(box_hi[root, a] - o[a]))
+                far2 += reach_a * reach_a
+            grow = math.sqrt(far2) * (margin + 1e-9) + 1e-9
+            reach = _meets_tree(o, inv, box_lo, box_hi, first_child, root, grow, stack)
+        if reach:
+            keep[kept] = i
+            kept += 1
+    return keep[:kept]
+
+
+@njit(nogil=True, cache=True)
+def motion_bound(sensor_rotation, sensor_position, rotation, position, reference,
+                 reach):  # noqa: ANN001, ANN201
+    """How far any point within ``reach`` of a target's origin strays, in the sensor frame,
+    from where the ``reference`` pose puts it: the largest ``‖Mᵢ − M₀‖_F · reach + |oᵢ − o₀|``
+    over the N poses, with ``Mᵢ = Rsᵢᵀ Rtᵢ`` and ``oᵢ = Rsᵢᵀ (ptᵢ − psᵢ)`` (the Frobenius
+    norm bounds the spectral one). Each array holds N rows or one (shared)."""
+    n = max(sensor_rotation.shape[0], sensor_position.shape[0], rotation.shape[0],
+            position.shape[0])
+    m0 = np.empty((3, 3))
+    o0 = np.empty(3)
+    m = np.empty((3, 3))
+    o = np.empty(3)
+    worst = 0.0
+    for i in range(-1, n):
+        k = reference if i < 0 else i
+        rs = sensor_rotation[k if sensor_rotation.shape[0] > 1 else 0]
+        rt = rotation[k if rotation.shape[0] > 1 else 0]
+        ps = sensor_position[k if sensor_position.shape[0] > 1 else 0]
+        pt = position[k if position.shape[0] > 1 else 0]
+        dx, dy, dz = pt[0] - ps[0], pt[1] - ps[1], pt[2] - ps[2]
+        for a in range(3):
+            o[a] = rs[0, a] * dx + rs[1, a] * dy + rs[2, a] * dz
+            for b in range(3):
+                m[a, b] = rs[0, a] * rt[0, b] + rs[1, a] * rt[1, b] + rs[2, a] * rt[2, b]
+        if i < 0:
+            m0[:, :] = m
+            o0[:] = o
+            continue
+        frob = 0.0
+        shift = 0.0
+        for a in range(3):
+            shift += (o[a] - o0[a]) ** 2
+            for b in range(3):
+                frob += (m[a, b] - m0[a, b]) ** 2
+        worst = max(worst, math.sqrt(frob) * reach + math.sqrt(shift))
+    return worst

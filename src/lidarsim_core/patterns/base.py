@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import math
 from abc import abstractmethod
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Mapping
 
 import numpy as np
@@ -34,19 +34,24 @@ class RayBatch:
         (N, 3) float64 unit directions in the sensor frame (+X boresight, +Y left, +Z up).
     channel
         (N,) int16 emitter/channel id.
+    poses
+        The sensor's and targets' poses at these rays, once the pipeline has looked them up
+        (:func:`lidarsim_core.posing.with_piece_poses`), else None.
     """
 
     index: np.ndarray
     t: np.ndarray
     direction: np.ndarray
     channel: np.ndarray
+    poses: Any = field(default=None, compare=False, repr=False)
 
     def __len__(self) -> int:
         return len(self.index)
 
     def take(self, rows: np.ndarray) -> "RayBatch":
         """The rays at ``rows`` (indices into this batch)."""
-        return RayBatch(self.index[rows], self.t[rows], self.direction[rows], self.channel[rows])
+        return RayBatch(self.index[rows], self.t[rows], self.direction[rows], self.channel[rows],
+                        None if self.poses is None else self.poses.take(rows))
 
 
 class ScanPattern(Component):

@@ -83,8 +83,8 @@ class FlashPattern(CycleTimedPattern):
 
     def rays_for_indices(self, index: np.ndarray) -> RayBatch:
         index = np.asarray(index, dtype=np.int64)
-        direction = self._pixels[self.cycle.slot(index)]
-        return RayBatch(index, self.cycle.time(index), direction, self.cycle.channel(index))
+        t, slot, channel = self.cycle.rays(index)
+        return RayBatch(index, t, self._pixels[slot], channel)
 
 
 @hookimpl

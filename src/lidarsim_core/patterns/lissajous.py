@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 from pydantic import Field
 
+from .. import kernels
 from ..components import ComponentOptions
 from ..errors import ConfigError
 from ..hookspecs import hookimpl
@@ -75,9 +76,18 @@ class LissajousPattern(ScanPattern):
     def rays_for_indices(self, index: np.ndarray) -> RayBatch:
         index = np.asarray(index, dtype=np.int64)
         t = self.time_of_index(index)
-        az, el = self.angles(t)
-        return RayBatch(index, t, directions_from_az_el(az, el),
-                        np.zeros(len(index), dtype=np.int16))
+        if kernels.enabled():
+            from ..kernels.patterns import lissajous_directions
+
+            opts = self.options
+            direction = lissajous_directions(
+                np.ascontiguousarray(t, dtype=np.float64), float(opts.azimuth_hz),
+                math.radians(opts.azimuth_phase_deg), float(self._a_az),
+                float(opts.elevation_hz), math.radians(opts.elevation_phase_deg),
+                float(self._a_el), math.radians(self.sensor.fov_v_center_deg))
+        else:
+            direction = directions_from_az_el(*self.angles(t))
+        return RayBatch(index, t, direction, np.zeros(len(index), dtype=np.int16))
 
 
 @hookimpl

@@ -127,8 +127,8 @@ class RasterPattern(CycleTimedPattern):
 
     def rays_for_indices(self, index: np.ndarray) -> RayBatch:
         index = np.asarray(index, dtype=np.int64)
-        return RayBatch(index, self.cycle.time(index), self._slots[self.cycle.slot(index)],
-                        self.cycle.channel(index))
+        t, slot, channel = self.cycle.rays(index)
+        return RayBatch(index, t, self._slots[slot], channel)
 
 
 @hookimpl

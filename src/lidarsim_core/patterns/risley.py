@@ -35,6 +35,7 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import Field
 
+from .. import kernels
 from ..components import ComponentOptions
 from ..errors import ConfigError, PluginError
 from ..hookspecs import hookimpl
@@ -162,9 +163,21 @@ class RisleyPattern(CycleTimedPattern):
     # ---- the pattern ---------------------------------------------------------------------
     def rays_for_indices(self, index: np.ndarray) -> RayBatch:
         index = np.asarray(index, dtype=np.int64)
-        t = self.cycle.time(index)
-        channel = self.cycle.channel(index)
-        direction = self.trace(self._incident[channel], self.prism_rolls(t))
+        t, _, channel = self.cycle.rays(index)
+        if kernels.enabled():  # the same optics, compiled (kernels.risley)
+            from ..kernels.risley import risley_directions
+
+            prisms = self.options.prisms
+            wedge = np.radians([p.wedge_deg for p in prisms])
+            direction = risley_directions(
+                np.ascontiguousarray(t, dtype=np.float64), np.asarray(channel, dtype=np.int64),
+                self._incident, np.sin(wedge), np.cos(wedge),
+                np.array([p.rotor_hz for p in prisms], dtype=np.float64),
+                np.array([math.radians(p.phase_deg) for p in prisms]),
+                np.array([p.wedge_face == "entrance" for p in prisms]),
+                np.array(self._index, dtype=np.float64))
+        else:
+            direction = self.trace(self._incident[channel], self.prism_rolls(t))
         if not np.all(np.isfinite(direction)):
             raise PluginError(f"{self.name}: a beam was totally reflected inside a prism")
         return RayBatch(index, t, direction, channel)

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 from pydantic import Field, model_validator
 
+from .. import kernels
 from ..components import ComponentOptions
 from ..hookspecs import hookimpl
 from .base import RayBatch
@@ -97,10 +98,18 @@ class SpinningPattern(CycleTimedPattern):
 
     def rays_for_indices(self, index: np.ndarray) -> RayBatch:
         index = np.asarray(index, dtype=np.int64)
-        t = self.cycle.time(index)
-        channel = self.cycle.channel(index)
-        azimuth = self.head_azimuth(t) + self._az_offset[channel]
-        direction = directions_from_az_el(azimuth, self._elevation[channel])
+        t, _, channel = self.cycle.rays(index)
+        if kernels.enabled():
+            from ..kernels.patterns import spinning_directions
+
+            direction = spinning_directions(
+                t, channel, float(self.options.rotation_hz),
+                math.radians(self.options.azimuth_start_deg), float(self._spin),
+                np.ascontiguousarray(self._az_offset, dtype=np.float64),
+                np.ascontiguousarray(self._elevation, dtype=np.float64))
+        else:
+            azimuth = self.head_azimuth(t) + self._az_offset[channel]
+            direction = directions_from_az_el(azimuth, self._elevation[channel])
         return RayBatch(index, t, direction, channel)
 
     def max_off_axis_rad(self) -> float:

@@ -17,6 +17,8 @@ from typing import Any
 
 import numpy as np
 
+from .. import kernels
+
 from ..errors import ConfigError
 from .base import ScanPattern
 
@@ -103,6 +105,19 @@ class FiringCycle:
     def channel(self, index: np.ndarray) -> np.ndarray:
         """Channel id (int16) of every ray ``index``."""
         return self.channels[self.slot(index)]
+
+    def rays(self, index: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Time (s), slot and channel of every ray ``index`` at once (one pass, compiled
+        when the kernels are in use; the same values as :meth:`time`, :meth:`slot` and
+        :meth:`channel`)."""
+        index = np.asarray(index, dtype=np.int64)
+        if kernels.enabled():
+            from ..kernels.patterns import cycle_rays
+
+            return cycle_rays(np.ascontiguousarray(index), self._size, float(self.period_s),
+                              self.offsets_s, self.channels)
+        slot = self.slot(index)
+        return self.time(index), slot, self.channels[slot]
 
 
 class CycleTimedPattern(ScanPattern):

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..noise.base import NoiseContext
 from ..patterns.base import RayBatch
-from ..poses import Poses
+from ..posing import PoseMatrices
 from ..returns import Candidates, SubRayHits
 
 
@@ -41,8 +41,8 @@ class SceneRays:
 
     origin: np.ndarray
     vectors: list[np.ndarray]
-    sensor_poses: Poses
-    target_poses: list[Poses]
+    sensor_poses: PoseMatrices
+    target_poses: list[PoseMatrices]
 
 
 @dataclass

@@ -86,10 +86,6 @@ def mirror_coupling(reflectance: np.ndarray, slope2: np.ndarray, cos_incidence: 
     return np.asarray(reflectance) * -np.expm1(-t2 / (np.asarray(slope2) * c))
 
 
-def _take(poses, rows: np.ndarray):
-    return poses if len(poses) == 1 else poses[rows]
-
-
 class BounceStage:
     """Ghost returns from specular bounces (see the module docstring)."""
 
@@ -144,7 +140,7 @@ class BounceStage:
             n_scene = np.empty_like(normal)
             for j in np.unique(target):
                 sel = np.flatnonzero(target == j)
-                n_scene[sel] = rotate(_take(scene.target_poses[j], pulse[sel]), normal[sel])
+                n_scene[sel] = rotate(scene.target_poses[j].take(pulse[sel]), normal[sel])
             direction = direction - 2.0 * rowdot(direction, n_scene)[:, None] * n_scene
             direction /= np.linalg.norm(direction, axis=1)[:, None]
             offset = BOUNCE_OFFSET_M * (1.0 + path)
@@ -158,7 +154,7 @@ class BounceStage:
             point = start[hit] + direction * t[:, None]
             target, face, part = new_target[hit], new_face[hit], new_part[hit]
             cos_inc, normal = new_cos[hit], new_normal[hit]
-            true_point = to_body(_take(scene.sensor_poses, pulse), point)
+            true_point = to_body(scene.sensor_poses.take(pulse), point)
             ghosts.append(self._candidates(piece, bounce, ray, path, target, face, part,
                                            cos_inc, gain, true_point, len(hits.distance), k))
             if not len(ray):
@@ -183,7 +179,7 @@ class BounceStage:
         cos_inc = np.zeros(n)
         normal = np.zeros((n, 3))
         for j, target in enumerate(self.targets):
-            poses = _take(target_poses[j], pulse)
+            poses = target_poses[j].take(pulse)
             o_body = to_body(poses, origin)
             d_body = rotate(poses, direction, inverse=True)
             hits = self.backend.cast(target.mesh, o_body, d_body)

@@ -55,7 +55,7 @@ from ..returns import Candidates
 from ..rng import ray_uniforms
 from ..vec3 import rowdot
 from .base import Piece
-from .bounces import BOUNCE_OFFSET_M, _take
+from .bounces import BOUNCE_OFFSET_M
 
 if TYPE_CHECKING:
     from ..pipeline import Simulation
@@ -310,7 +310,7 @@ class SunStage:
         normal = np.empty((len(ray), 3))
         for j in np.unique(target):
             sel = np.flatnonzero(target == j)
-            normal[sel] = rotate(_take(scene.target_poses[j], pulse[sel]), hits.normal[ray[sel]])
+            normal[sel] = rotate(scene.target_poses[j].take(pulse[sel]), hits.normal[ray[sel]])
         # the side of the surface the sensor sees
         normal *= -np.sign(rowdot(normal, direction))[:, None]
         sun_ray = sun[pulse]
@@ -335,7 +335,7 @@ class SunStage:
             return blocked
         start = point + sun * (BOUNCE_OFFSET_M * (1.0 + distance))[:, None]
         for j, target in enumerate(self.targets):
-            poses = _take(target_poses[j], pulse)
+            poses = target_poses[j].take(pulse)
             hits = self.backend.cast(target.mesh, to_body(poses, start),
                                      rotate(poses, sun, inverse=True))
             blocked |= hits.hit & ~((from_target == j) & (hits.face == from_face))

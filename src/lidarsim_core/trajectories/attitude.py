@@ -20,6 +20,7 @@ import numpy as np
 from pydantic import ConfigDict, Discriminator, Field, Tag, model_validator
 from scipy.spatial.transform import Rotation
 
+from .. import kernels
 from ..components import ComponentOptions
 from ..poses import PoseConfig
 
@@ -45,6 +46,17 @@ class LookAtAttitude(ComponentOptions):
     def rotations(self, positions: np.ndarray) -> Rotation:
         """Body→scene rotations for bodies at ``positions`` ((N, 3), m)."""
         return look_at(positions, np.asarray(self.point_m, float), np.asarray(self.up, float))
+
+    def matrices(self, positions: np.ndarray) -> np.ndarray:
+        """(N, 3, 3) body→scene rotation matrices for bodies at ``positions`` (compiled when
+        the kernels are in use: the same construction, within a few ulp)."""
+        point, up = np.asarray(self.point_m, float), np.asarray(self.up, float)
+        positions = np.atleast_2d(np.asarray(positions, dtype=np.float64))
+        if kernels.enabled():  # for any number of rows: a ray's pose never depends on it
+            from ..kernels.poses import look_at_matrices as compiled
+
+            return compiled(np.ascontiguousarray(positions), point, up / np.linalg.norm(up))
+        return look_at_matrices(positions, point, up)
 
 
 class FixedAttitude(ComponentOptions):
@@ -72,6 +84,10 @@ class FixedAttitude(ComponentOptions):
         """The fixed rotation, once per position."""
         quat = self.rotation().as_quat()
         return Rotation.from_quat(np.tile(quat, (len(positions), 1)))
+
+    def matrices(self, positions: np.ndarray) -> np.ndarray:
+        """The fixed rotation's matrix, once per position."""
+        return np.repeat(self.rotation().as_matrix().reshape(1, 3, 3), len(positions), axis=0)
 
 
 def _mode(value: Any) -> str:
@@ -104,6 +120,11 @@ def look_at(positions: np.ndarray, point: np.ndarray, up: np.ndarray) -> Rotatio
     Rotation
         N body→scene rotations (columns of the matrix: boresight, left, up).
     """
+    return Rotation.from_matrix(look_at_matrices(positions, point, up))
+
+
+def look_at_matrices(positions: np.ndarray, point: np.ndarray, up: np.ndarray) -> np.ndarray:
+    """The (N, 3, 3) matrices of :func:`look_at` (orthonormal by construction)."""
     positions = np.atleast_2d(np.asarray(positions, dtype=np.float64))
     n = len(positions)
     x = point[None, :] - positions
@@ -123,5 +144,5 @@ def look_at(positions: np.ndarray, point: np.ndarray, up: np.ndarray) -> Rotatio
         znorm[parallel] = np.linalg.norm(z[parallel], axis=1)
     z /= znorm[:, None]
     y = np.cross(z, x)
-    return Rotation.from_matrix(np.stack([x, y, z], axis=2))
+    return np.stack([x, y, z], axis=2)
 

@@ -54,9 +54,10 @@ from ..config_io import validate_model
 from ..errors import ConfigError
 from ..hookspecs import hookimpl
 from ..poses import Poses
+from ..posing import PoseMatrices
 from .attitude import AttitudeConfig, LookAtAttitude
 from .base import Trajectory
-from .orbit import OrbitConfig, hcw_propagate
+from .orbit import OrbitConfig, hcw_positions, hcw_propagate
 
 Vec3 = tuple[float, float, float]
 _ZERO3: Vec3 = (0.0, 0.0, 0.0)
@@ -226,20 +227,27 @@ class HCWTrajectory(Trajectory):
         pieces.append(_Piece(t, math.inf, "natural", p, v))
         return pieces
 
-    def states_at(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """(N, 3) LVLH positions (m) and velocities (m/s) at times ``t`` (s from the epoch)."""
+    def states_at(self, t: np.ndarray, *, velocities: bool = True
+                  ) -> tuple[np.ndarray, np.ndarray]:
+        """(N, 3) LVLH positions (m) and velocities (m/s) at times ``t`` (s from the epoch);
+        without ``velocities`` the second array is left unset (the poses need none)."""
         t = np.atleast_1d(np.asarray(t, dtype=np.float64))
         # the first piece starts at -inf; a time on a boundary belongs to the later piece
         which = np.searchsorted(self._starts, t, side="right") - 1
         pos = np.empty((len(t), 3))
         vel = np.empty((len(t), 3))
-        for k in np.unique(which):
+        one = len(t) > 0 and which[0] == which[-1] and bool((which == which[0]).all())
+        for k in (which[:1] if one else np.unique(which)):
             piece = self._pieces[k]
-            sel = which == k
+            sel = slice(None) if one else which == k  # usually every time in one piece
             anchor = piece.t1 if piece.t0 == -math.inf else piece.t0
             tau = t[sel] - anchor
-            if piece.kind == "natural":
+            if piece.kind == "natural" and not velocities:
+                pos[sel] = hcw_positions(piece.p0, piece.v0, self.n, tau)
+            elif piece.kind == "natural":
                 pos[sel], vel[sel] = hcw_propagate(piece.p0, piece.v0, self.n, tau)
+            elif piece.kind == "hold":  # p0 + τ·0 is p0, bit for bit
+                pos[sel], vel[sel] = piece.p0, 0.0
             else:
                 pos[sel] = piece.p0 + tau[:, None] * piece.v0
                 vel[sel] = piece.v0
@@ -253,6 +261,17 @@ class HCWTrajectory(Trajectory):
     def poses_at(self, t: np.ndarray) -> Poses:
         position, _ = self.states_at(t)
         return Poses(position, self.options.attitude.rotations(position))
+
+    def pose_matrices(self, t: np.ndarray) -> PoseMatrices:
+        t = np.atleast_1d(np.asarray(t, dtype=np.float64))
+        if len(t) > 1:
+            which = np.searchsorted(self._starts, [t.min(), t.max()], side="right") - 1
+            if which[0] == which[-1] and self._pieces[which[0]].kind == "hold":
+                # every time in one hold: one pose, shared by every ray (the same bits)
+                position = self._pieces[which[0]].p0[None, :].astype(np.float64)
+                return PoseMatrices(position, self.options.attitude.matrices(position))
+        position, _ = self.states_at(t, velocities=False)
+        return PoseMatrices(position, self.options.attitude.matrices(position))
 
 
 @hookimpl

@@ -40,6 +40,7 @@ from ..components import ComponentOptions
 from ..config_io import read_config_file, read_text_file, validate_model
 from ..errors import ConfigError
 from ..hookspecs import hookimpl
+from ..posing import PoseMatrices, quat_matrices, quat_multiply
 from ..poses import PoseConfig, Poses
 from .attitude import AttitudeConfig
 from .base import Trajectory
@@ -201,6 +202,7 @@ class KeyframeTrajectory(Trajectory):
         self._positions = np.array([k.position_m for k in frames], dtype=np.float64)
         self._rotations = Rotation.concatenate([k.rotation() for k in frames])
         self.is_static = len(frames) == 1
+        self._slerp: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
         self._build_interpolators()
 
     @classmethod
@@ -236,15 +238,18 @@ class KeyframeTrajectory(Trajectory):
         """First and last keyframe times (s)."""
         return float(self._times[0]), float(self._times[-1])
 
-    def poses_at(self, t: np.ndarray) -> Poses:
-        t = np.atleast_1d(np.asarray(t, dtype=np.float64))
+    def _check_span(self, t: np.ndarray) -> None:
         t0, t1 = self.time_span
         if self.options.extrapolate == "error" and len(t) and (t.min() < t0 or t.max() > t1):
             source, field = self._where
             raise ConfigError(f"keyframes cover t = {t0:g}..{t1:g} s but the scan needs "
                               f"t = {t.min():g}..{t.max():g} s (use extrapolate: hold or add "
                               "keyframes)", source=source, field=f"{field}.extrapolate")
-        tc = np.clip(t, t0, t1)
+
+    def poses_at(self, t: np.ndarray) -> Poses:
+        t = np.atleast_1d(np.asarray(t, dtype=np.float64))
+        self._check_span(t)
+        tc = np.clip(t, *self.time_span)
         if self._position_fn is None:
             position = np.repeat(self._positions, len(t), axis=0)
             rotation = Rotation.from_quat(np.repeat(self._rotations.as_quat(), len(t), axis=0))
@@ -254,6 +259,45 @@ class KeyframeTrajectory(Trajectory):
         if self.options.attitude is not None:
             rotation = self.options.attitude.rotations(position)
         return Poses(position, rotation)
+
+    def pose_matrices(self, t: np.ndarray) -> PoseMatrices:
+        if self._position_fn is not None and self.options.rotation_interpolation == "spline" \
+                and self.options.attitude is None:
+            return PoseMatrices.from_poses(self.poses_at(t))  # SciPy's rotation spline
+        t = np.atleast_1d(np.asarray(t, dtype=np.float64))
+        self._check_span(t)
+        tc = np.clip(t, *self.time_span)
+        if self._position_fn is None:
+            position = np.repeat(self._positions, len(t), axis=0)
+        else:
+            position = np.asarray(self._position_fn(tc), dtype=np.float64).reshape(-1, 3)
+        if self.options.attitude is not None:
+            return PoseMatrices(position, self.options.attitude.matrices(position))
+        if self._position_fn is None:
+            return PoseMatrices(position, np.repeat(self._rotations.as_matrix().reshape(1, 3, 3),
+                                                    len(t), axis=0))
+        return PoseMatrices(position, self._slerp_matrices(tc))
+
+    def _slerp_matrices(self, t: np.ndarray) -> np.ndarray:
+        """SciPy ``Slerp`` in quaternion arithmetic: ``q_k ⊗ exp(α · log(q_k⁻¹ q_k+1))``."""
+        if self._slerp is None:
+            rotvecs = (self._rotations[:-1].inv() * self._rotations[1:]).as_rotvec()
+            self._slerp = (self._rotations.as_quat(), rotvecs, np.diff(self._times))
+        quats, rotvecs, dt = self._slerp
+        k = np.searchsorted(self._times, t) - 1  # Slerp's choice of interval
+        k[k == -1] = 0
+        alpha = (t - self._times[k]) / dt[k]
+        step = rotvecs[k] * alpha[:, None]
+        angle = np.sqrt((step * step).sum(axis=1))
+        small = angle <= 1e-3  # SciPy's series for sin(θ/2)/θ near 0
+        a2 = angle * angle
+        scale = np.where(small, 0.5 - a2 / 48 + a2 * a2 / 3840,
+                         np.sin(0.5 * angle) / np.where(small, 1.0, angle))
+        q = quats[k]
+        x, y, z, w = quat_multiply((q[:, 0], q[:, 1], q[:, 2], q[:, 3]),
+                                   (scale * step[:, 0], scale * step[:, 1], scale * step[:, 2],
+                                    np.cos(0.5 * angle)))
+        return quat_matrices(x, y, z, w)
 
 
 @hookimpl

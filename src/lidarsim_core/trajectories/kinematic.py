@@ -30,6 +30,7 @@ from scipy.spatial.transform import Rotation
 
 from ..hookspecs import hookimpl
 from ..poses import PoseConfig, Poses
+from ..posing import PoseMatrices, RotationChain
 from .base import Trajectory
 
 
@@ -63,6 +64,14 @@ class ConstantVelocityTrajectory(Trajectory):
         self._r0 = opts.rotation()
         self._omega = np.radians(np.asarray(opts.angular_velocity_deg_s, dtype=np.float64))
         self.is_static = not (self._v.any() or self._omega.any())
+        rate = float(np.linalg.norm(self._omega))
+        spin = (self._omega, rate)
+        self._chain = RotationChain.build(self._r0, spin) \
+            if opts.angular_velocity_frame == "body" else RotationChain.build(spin, self._r0)
+
+    def pose_matrices(self, t: np.ndarray) -> PoseMatrices:
+        tau = np.atleast_1d(np.asarray(t, dtype=np.float64)) - self.options.t_ref_s
+        return PoseMatrices(self._p0 + tau[:, None] * self._v, self._chain.matrices(tau))
 
     def poses_at(self, t: np.ndarray) -> Poses:
         tau = np.atleast_1d(np.asarray(t, dtype=np.float64)) - self.options.t_ref_s

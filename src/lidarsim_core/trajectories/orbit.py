@@ -77,6 +77,29 @@ class OrbitConfig(ComponentOptions):
         return 2.0 * math.pi / self.mean_motion
 
 
+def _hcw_positions(position: np.ndarray, velocity: np.ndarray, n: float, tau: np.ndarray
+                   ) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
+    p = np.broadcast_to(np.asarray(position, dtype=np.float64), (len(tau), 3))
+    v = np.broadcast_to(np.asarray(velocity, dtype=np.float64), (len(tau), 3))
+    x0, y0, z0 = p.T
+    vx, vy, vz = v.T
+    nt = n * tau
+    c, s = np.cos(nt), np.sin(nt)
+    pos = np.column_stack([
+        (4.0 - 3.0 * c) * x0 + s / n * vx + 2.0 / n * (1.0 - c) * vy,
+        6.0 * (s - nt) * x0 + y0 - 2.0 / n * (1.0 - c) * vx + (4.0 * s - 3.0 * nt) / n * vy,
+        c * z0 + s / n * vz,
+    ])
+    return pos, (x0, z0, vx, vy, vz, nt, c, s)
+
+
+def hcw_positions(position: np.ndarray, velocity: np.ndarray, n: float,
+                  tau: np.ndarray) -> np.ndarray:
+    """The positions of :func:`hcw_propagate` alone (the same arithmetic, the same bits)."""
+    tau = np.atleast_1d(np.asarray(tau, dtype=np.float64))
+    return _hcw_positions(position, velocity, n, tau)[0]
+
+
 def hcw_propagate(position: np.ndarray, velocity: np.ndarray, n: float,
                   tau: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Closed-form HCW natural motion, vectorised.
@@ -96,17 +119,7 @@ def hcw_propagate(position: np.ndarray, velocity: np.ndarray, n: float,
         (N, 3) LVLH state at each ``tau``.
     """
     tau = np.atleast_1d(np.asarray(tau, dtype=np.float64))
-    p = np.broadcast_to(np.asarray(position, dtype=np.float64), (len(tau), 3))
-    v = np.broadcast_to(np.asarray(velocity, dtype=np.float64), (len(tau), 3))
-    x0, y0, z0 = p.T
-    vx, vy, vz = v.T
-    nt = n * tau
-    c, s = np.cos(nt), np.sin(nt)
-    pos = np.column_stack([
-        (4.0 - 3.0 * c) * x0 + s / n * vx + 2.0 / n * (1.0 - c) * vy,
-        6.0 * (s - nt) * x0 + y0 - 2.0 / n * (1.0 - c) * vx + (4.0 * s - 3.0 * nt) / n * vy,
-        c * z0 + s / n * vz,
-    ])
+    pos, (x0, z0, vx, vy, vz, nt, c, s) = _hcw_positions(position, velocity, n, tau)
     vel = np.column_stack([
         3.0 * n * s * x0 + c * vx + 2.0 * s * vy,
         6.0 * n * (c - 1.0) * x0 - 2.0 * s * vx + (4.0 * c - 3.0) * vy,

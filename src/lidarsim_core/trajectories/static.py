@@ -9,6 +9,7 @@ from scipy.spatial.transform import Rotation
 
 from ..hookspecs import hookimpl
 from ..poses import PoseConfig, Poses
+from ..posing import PoseMatrices
 from .base import Trajectory
 
 
@@ -27,6 +28,12 @@ class StaticTrajectory(Trajectory):
         n = len(np.atleast_1d(t))
         quat = np.tile(self._pose.rotation.as_quat().reshape(1, 4), (n, 1))
         return Poses(np.repeat(self._pose.position, n, axis=0), Rotation.from_quat(quat))
+
+    def pose_matrices(self, t: np.ndarray) -> PoseMatrices:
+        n = len(np.atleast_1d(t))
+        matrix = self._pose.rotation.as_matrix().reshape(1, 3, 3)
+        return PoseMatrices(np.repeat(self._pose.position, n, axis=0),
+                            np.repeat(matrix, n, axis=0))
 
 
 @hookimpl

@@ -58,6 +58,7 @@ from scipy.spatial.transform import Rotation
 
 from ..hookspecs import hookimpl
 from ..poses import PoseConfig, Poses
+from ..posing import PoseMatrices, RotationChain, quat_matrices, quat_multiply
 from .base import Trajectory
 from .orbit import OrbitConfig, lvlh_from_inertial
 
@@ -108,6 +109,25 @@ class _RigidBodyTrajectory(Trajectory):
         if self.options.orbit is not None:
             rotation = lvlh_from_inertial(self.options.orbit.mean_motion, tau) * rotation
         return Poses(self._p - rotation.apply(self._com), rotation)
+
+    @abstractmethod
+    def scene_matrices(self, tau: np.ndarray) -> np.ndarray:
+        """(N, 3, 3) body→scene rotation matrices at ``tau`` seconds after ``t_ref_s`` (the
+        rotations of :meth:`poses_at`, without SciPy)."""
+
+    def pose_matrices(self, t: np.ndarray) -> PoseMatrices:
+        tau = np.atleast_1d(np.asarray(t, dtype=np.float64)) - self.options.t_ref_s
+        matrix = self.scene_matrices(tau)
+        if not self._com.any():  # p - R·0 is p, bit for bit: one position for all
+            return PoseMatrices(self._p[None, :], matrix)
+        c = self._com
+        turned = matrix[:, :, 0] * c[0] + matrix[:, :, 1] * c[1] + matrix[:, :, 2] * c[2]
+        return PoseMatrices(self._p - turned, matrix)
+
+    def _lvlh_link(self) -> list[tuple[np.ndarray, float]]:
+        """The LVLH frame's turn relative to inertial space, as a chain link (or none)."""
+        orbit = self.options.orbit
+        return [] if orbit is None else [(np.array([0.0, 0.0, 1.0]), -orbit.mean_motion)]
 
 
 class TumblingOptions(RigidBodyOptions):
@@ -179,6 +199,12 @@ class TumblingTrajectory(_RigidBodyTrajectory):
         self._s = _unit(opts.symmetry_axis, "symmetry_axis")
         self._phi_dot = math.radians(opts.precession_rate_deg_s)
         self._psi_dot = math.radians(opts.spin_rate_deg_s)
+
+        self._chain = RotationChain.build(*self._lvlh_link(), (self._h, self._phi_dot),
+                                          self._r0, (self._s, self._psi_dot))
+
+    def scene_matrices(self, tau: np.ndarray) -> np.ndarray:
+        return self._chain.matrices(tau)
 
     def angular_velocity_inertial(self, t: np.ndarray) -> np.ndarray:
         """(N, 3) inertial angular velocity ``φ̇ h + ψ̇ R(t) s`` (rad/s)."""
@@ -306,6 +332,17 @@ class TorqueFreeTrajectory(_RigidBodyTrajectory):
 
     def inertial_rotations(self, tau: np.ndarray) -> Rotation:
         return Rotation.from_quat(self.states(tau)[:, :4])
+
+    def scene_matrices(self, tau: np.ndarray) -> np.ndarray:
+        tau = np.atleast_1d(np.asarray(tau, dtype=np.float64))
+        q = self.states(tau)[:, :4]
+        parts = (q[:, 0], q[:, 1], q[:, 2], q[:, 3])
+        if self.options.orbit is not None:  # Rot(z, -n τ) ⊗ q
+            half = 0.5 * (-self.options.orbit.mean_motion * tau)
+            s = np.sin(half)
+            zero = np.zeros_like(s)
+            parts = quat_multiply((zero, zero, s, np.cos(half)), parts)
+        return quat_matrices(*parts)
 
 
 @hookimpl
