@@ -80,6 +80,22 @@ class Report:
     html: Path | None = None
     json: Path | None = None
 
+    def files(self) -> list[Path]:
+        """Every file this report wrote: the figures, ``report.json`` and ``report.html``."""
+        return [f.path for f in self.figures] + [p for p in (self.json, self.html)
+                                                  if p is not None]
+
+
+#: Figures drawn with pyvista (skipped by ``three_d=False``).
+THREE_D_FIGURES = ("scene", "errors", "cloud")
+
+
+def report_files(colour_by: str = "part", *, three_d: bool = True) -> list[str]:
+    """Names of every file :func:`write_report` may write (for the overwrite check)."""
+    names = [name.format(colour_by=colour_by) for key, name in FIGURE_FILES.items()
+             if three_d or key not in THREE_D_FIGURES]
+    return names + ["report.json", "report.html"]
+
 
 def require_viz() -> None:
     """Raise :class:`VizMissing` unless matplotlib and pyvista can be imported."""
@@ -94,7 +110,8 @@ def require_viz() -> None:
 def write_report(run_dir: str | Path, out_dir: str | Path | None = None, *,
                  scenario: str | Path | None = None, frame: int | None = None,
                  colour_by: str = "part", coverage_time_s: float | None = None,
-                 cell_deg: float = 0.5, three_d: bool = True) -> Report:
+                 cell_deg: float = 0.5, three_d: bool = True,
+                 overwrite: bool = False) -> Report:
     """Read a run directory and write its report figures and page.
 
     Parameters
@@ -116,6 +133,9 @@ def write_report(run_dir: str | Path, out_dir: str | Path | None = None, *,
         Cell size of the coverage map (deg).
     three_d
         Draw the pyvista figures (7, 11, 12); False draws only the 2-D ones.
+    overwrite
+        Replace report files already in ``out_dir`` (otherwise :class:`OutputError` naming
+        them, before anything is drawn; other files there are never touched).
 
     Returns
     -------
@@ -130,10 +150,11 @@ def write_report(run_dir: str | Path, out_dir: str | Path | None = None, *,
         When the run directory, its scenario or an option is invalid.
     """
     require_viz()
+    from ..outputs import check_files
+
     run_dir = Path(run_dir)
     out = Path(out_dir) if out_dir is not None else run_dir / "report"
-    if out.exists() and not out.is_dir():
-        raise OutputError("--out must be a directory", source=out)
+    check_files(out, report_files(colour_by, three_d=three_d), overwrite=overwrite)
     run = load_run(run_dir, scenario=scenario, frame=frame)
     from .colouring import point_colours
 
