@@ -420,10 +420,21 @@ def _load_command_modules() -> None:
         import_module(f"{__package__}.{name}")
 
 
+def _show_warning(message: Any, category: type[Warning], filename: str, lineno: int,
+                  file: Any = None, line: str | None = None) -> None:
+    """Warnings are one line on stderr, ``warning: ...``, like errors (no source location)."""
+    from rich.markup import escape
+
+    _console(stderr=True).print(f"[yellow]warning:[/] {escape(str(message))}")
+
+
 def main(argv: list[str] | None = None) -> None:
     """Console-script entry point."""
+    import warnings
+
     from .guard import sigterm_as_interrupt
 
+    warnings.showwarning = _show_warning
     _load_command_modules()
     with sigterm_as_interrupt():
         app(args=argv, prog_name="lidarsim")

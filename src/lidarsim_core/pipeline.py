@@ -46,6 +46,7 @@ from .guard import check_sensor_outside, guard_components, interrupt_behind
 from .errors import ConfigError, LidarsimError, PluginError
 from .materials import Material, MaterialTable, material_library, part_materials
 from .mesh import Mesh, load_mesh_file
+from .units import warn_about_units
 from .noise.base import NoiseContext, NoiseModel, Returns, perpendicular_basis
 from .noise.outliers import SpuriousReturnModel
 from .noise.streams import for_return
@@ -149,6 +150,7 @@ class Simulation:
             self.targets.append(Target(cfg.name, mesh, traj, offset))
             offset += len(mesh.part_names)
         self.part_names = [f"{t.name}/{p}" for t in self.targets for p in t.mesh.part_names]
+        warn_about_units(self)  # a mesh in millimetres: a warning that suggests 'scale'
         self._setup_measurement(scenario)
         #: Plan for skipping pulses that cannot reach a target (None: every pulse is cast).
         self.culler: PulseCuller | None = PulseCuller.for_simulation(self)
