@@ -272,10 +272,16 @@ def _three_d_figures(run: Run, out: Path, colour_by: str, report: Report) -> Non
         "The targets at their poses at frame start, in the scene frame, and the LiDAR (red) "
         "with its axes (+X boresight red, +Y green, +Z blue) and its datasheet field of view."))
     scene.errors_figure(run, out / name["errors"])
+    if len(run.clean) >= 10:
+        views, radius = scene.patch_views(run)
+        report.summary.update(flat_patch_diameter_m=2 * radius,
+                              flat_patch_spread_without_errors_mm=views["clean"].spread_mm,
+                              flat_patch_spread_with_errors_mm=views["noisy"].spread_mm)
     report.figures.append(Figure(
         "errors", out / name["errors"], "Point clouds without and with errors (paper Fig. 11)",
         "Left: the cloud without errors; right: with the datasheet's angular and range errors "
-        "(same pulses). Top: the whole cloud, coloured by range. Middle: a flat patch face-on; "
+        "(same pulses). Top: the whole cloud, coloured by range. Middle: a flat patch face-on "
+        "(on the planar facet hit most, never across an edge); "
         "without errors the scan lines are exact, the angular error scatters the points along "
         "the surface. Bottom: the same patch edge-on with the normal axis stretched; without "
         "errors the points lie on the plane, the range error spreads them off it."))
