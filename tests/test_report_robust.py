@@ -47,9 +47,17 @@ def test_fig11_patch_on_a_box_satellite_is_one_plane(tmp_path):
     # the range error (σ 20 mm along the ray) shows off the plane, foreshortened by incidence
     assert 5.0 < views["noisy"].spread_mm < 25.0
     assert len(views["clean"].local) > 300 and radius > 0.3
-    # the patch's points all hit faces of one plane, and the bus shows several planes
-    planes = plane_ids(run.clean, run.simulation.targets)
-    assert len(np.unique(planes[planes >= 0])) >= 3
+    # the bus shows several planes; the two clouds name them alike
+    clean, noisy = plane_ids([run.clean, run.noisy], run.simulation.targets)
+    assert len(np.unique(clean[clean >= 0])) >= 3
+    common = np.intersect1d(run.clean["ray_index"], run.noisy["ray_index"])
+    same_face = [r for r in common
+                 if run.clean["face_index"][run.clean["ray_index"] == r][0] ==
+                 run.noisy["face_index"][run.noisy["ray_index"] == r][0]]
+    assert len(same_face) > 100
+    c_ids = {int(r): int(clean[run.clean["ray_index"] == r][0]) for r in same_face[:100]}
+    n_ids = {int(r): int(noisy[run.noisy["ray_index"] == r][0]) for r in same_face[:100]}
+    assert c_ids == n_ids
 
 
 def test_plane_ids_group_faces_by_plane_not_by_part():
@@ -74,7 +82,7 @@ def test_plane_ids_group_faces_by_plane_not_by_part():
     columns["target"] = np.array([0, 0, 0, -1])  # the last: a false alarm
     info = FrameInfo(0, 0.0, 1.0, "s", 0, "", "numpy", [], "per_ray", ["t"], ["t/p"], 4,
                      {}, {}, [], [], [])
-    ids = plane_ids(PointCloud(columns, info), [target])
+    (ids,) = plane_ids([PointCloud(columns, info)], [target])
     assert ids[0] == ids[1] != ids[2] and ids[3] == -1
 
 

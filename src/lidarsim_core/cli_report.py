@@ -84,8 +84,7 @@ def demo_report(out: Path, *, quiet: bool = False) -> Any:
     (whose files the demo has checked against the overwrite policy); returns the
     :class:`~lidarsim_core.report.Report`, or None without the viz extra.
 
-    Without the viz extra the demo still succeeds: one line (on stderr) says how to get the
-    figures.
+    Without the viz extra the demo still succeeds: one line says how to get the figures.
     """
     from rich.markup import escape
 
@@ -95,7 +94,7 @@ def demo_report(out: Path, *, quiet: bool = False) -> Any:
     try:
         result = write_report(out, out, overwrite=True)
     except VizMissing as exc:
-        console(stderr=True).print(f"[yellow]note:[/] no report figures: {escape(str(exc))}")
+        console().print(f"[yellow]note:[/] no report figures: {escape(str(exc))}")
         return None
     if not quiet:
         print_report_summary(result)

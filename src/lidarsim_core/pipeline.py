@@ -245,7 +245,7 @@ class Simulation:
     def frame_rays(self, frame: int) -> tuple[int, int]:
         """Global ray index range ``[k0, k1)`` of ``frame``."""
         t0, t1 = self.scenario.scan.frame_interval(frame)
-        return self.pattern.index_range(t0, t1)
+        return self.pattern.frame_index_range(t0, t1)  # a flash LiDAR's frame: one flash
 
     def _noise_contexts(self, frame: int) -> list[NoiseContext]:
         return [NoiseContext(self.sensor, self.scenario.seed, frame, f"noise.{i}.{m.name}")

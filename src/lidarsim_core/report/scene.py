@@ -163,9 +163,7 @@ def _legend(plotter: Any, names: list[str], indices: Any, face: str) -> None:
     rows = len(names)
     longest = max((len(n) for n in names), default=4)
     height = min(0.028 * rows + 0.01, 0.5)
-    # row height × characters × a glyph's aspect ratio, plus the marker
-    width = min(0.48, 0.03 + 0.0175 * (height / max(rows, 1)) / 0.028 * longest)
-    width = max(width, 0.1)
+    width = min(0.45, max(0.16, 0.02 + 0.01 * longest))  # VTK shrinks the text to fit
     legend = plotter.add_legend([[name, part_colour(int(i))] for name, i in zip(names, indices)],
                                 bcolor="white", size=(width, height), loc="lower right",
                                 face=face, background_opacity=0.8)
@@ -257,31 +255,38 @@ def _fov_text(sheet: SensorDatasheet) -> str:
 
 
 # ---- Fig. 11: without and with errors ---------------------------------------------------
-def plane_ids(cloud: Any, targets: Any) -> np.ndarray:
-    """For every point, which plane of the target meshes it hit (-1 for false alarms).
+def plane_keys(cloud: Any, targets: Any) -> np.ndarray:
+    """For every point, the plane of the target meshes it hit as a row ``(target, unit
+    normal, offset)`` (NaN for false alarms), comparable between clouds of the same targets.
 
     Faces of one target with the same unit normal and the same offset along it (to 0.1 mm,
-    in the body frame, so motion does not matter) form one planar facet, whether or not
-    they touch.
+    in the body frame, so motion does not matter) lie in one plane, whether or not they
+    touch.
     """
-    ids = np.full(len(cloud), -1, dtype=np.int64)
+    keys = np.full((len(cloud), 5), np.nan)
     target, face = cloud["target"].astype(np.int64), cloud["face_index"].astype(np.int64)
-    valid = (target >= 0) & (face >= 0)
-    if not valid.any():
-        return ids
-    keys = np.zeros((int(valid.sum()), 5))
-    rows = np.flatnonzero(valid)
     for t, tgt in enumerate(targets):
-        sel = target[rows] == t
-        if not sel.any():
+        rows = np.flatnonzero((target == t) & (face >= 0))
+        if not len(rows):
             continue
         mesh = tgt.mesh
-        normals = mesh.face_normals[face[rows[sel]]]
-        offsets = np.einsum("ij,ij->i", normals, mesh.vertices[mesh.faces[face[rows[sel]], 0]])
-        keys[sel] = np.column_stack([np.full(sel.sum(), t), np.round(normals, 4),
-                                     np.round(offsets, 4)])
-    ids[rows] = np.unique(keys, axis=0, return_inverse=True)[1].reshape(-1)
-    return ids
+        normals = mesh.face_normals[face[rows]]
+        offsets = np.einsum("ij,ij->i", normals, mesh.vertices[mesh.faces[face[rows], 0]])
+        keys[rows] = np.column_stack([np.full(len(rows), t), np.round(normals, 4),
+                                      np.round(offsets, 4)])
+    return keys
+
+
+def plane_ids(clouds: list[Any], targets: Any) -> list[np.ndarray]:
+    """For every point of each cloud, an integer naming the plane it hit (the same plane has
+    the same id in every cloud; -1 for false alarms); see :func:`plane_keys`."""
+    keys = [plane_keys(c, targets) for c in clouds]
+    both = np.vstack(keys) if keys else np.zeros((0, 5))
+    ids = np.full(len(both), -1, dtype=np.int64)
+    valid = ~np.isnan(both).any(axis=1)
+    if valid.any():
+        ids[valid] = np.unique(both[valid], axis=0, return_inverse=True)[1].reshape(-1)
+    return np.split(ids, np.cumsum([len(k) for k in keys])[:-1])
 
 
 def flat_patch(points: np.ndarray, planes: np.ndarray, n_points: int = 1500
@@ -289,7 +294,7 @@ def flat_patch(points: np.ndarray, planes: np.ndarray, n_points: int = 1500
     """A flat patch to zoom on: centre, unit normal (toward the sensor at the origin), radius
     and the plane it lies on.
 
-    Takes the planar facet with most points (see :func:`plane_ids`), the point nearest its
+    Takes the plane with most points (see :func:`plane_ids`), the point nearest its
     median, the ``n_points`` points of that facet nearest to it (the radius reaches the
     farthest), and fits a plane. The patch never straddles an edge: points of other faces are
     not part of it.
@@ -326,13 +331,12 @@ def patch_views(run: Run, patch_points: int = 1500) -> tuple[dict[str, PatchView
     A point belongs to the patch when its pulse hit the patch's planar facet (its
     ``face_index``, so the clean cloud lies exactly on the plane) within the patch radius.
     """
-    targets = run.simulation.targets
-    clean_planes = plane_ids(run.clean, targets)
+    clean_planes, noisy_planes = plane_ids([run.clean, run.noisy], run.simulation.targets)
     p_centre, normal, radius, plane = flat_patch(run.clean.xyz_true, clean_planes, patch_points)
     frame = _patch_frame(normal)
     views = {}
-    for key, cloud in (("clean", run.clean), ("noisy", run.noisy)):
-        planes = clean_planes if cloud is run.clean else plane_ids(cloud, targets)
+    for key, cloud, planes in (("clean", run.clean, clean_planes),
+                               ("noisy", run.noisy, noisy_planes)):
         local = (cloud.xyz - p_centre) @ frame.T
         keep = (planes == plane) & (np.hypot(local[:, 0], local[:, 1]) < radius)
         spread = 1e3 * float(np.std(local[keep, 2])) if keep.any() else float("nan")
