@@ -132,10 +132,8 @@ def demo_files(three_d: bool = True) -> list[str]:
     names = [n for files in DEMO_CLOUDS.values() for f in files
              for n in (f, sidecar_path(f).name)]
     names.append("scenario.yaml")
-    try:
-        from .report.builder import report_files
-    except ImportError:  # pragma: no cover - the report package always imports
-        return names
+    from .report.builder import report_files  # light: the plotting libraries load later
+
     return names + report_files("part", three_d=three_d)
 
 
