@@ -240,3 +240,26 @@ def test_cloud_and_frame_reprs_are_one_line():
     assert "\n" not in text and len(text) < 200 and "array" not in text
     assert text.startswith(f"PointCloud({len(cloud):,} points from 5,000 rays, frame 0")
     assert "\n" not in repr(cloud.frame) and "livox-mid70-rose" in repr(cloud.frame)
+
+
+def test_progress_bar_draws_at_a_terminal_and_stays_silent_in_a_pipe(monkeypatch):
+    import io
+
+    from rich.console import Console
+
+    from lidarsim_core import cli_output
+
+    screen = io.StringIO()
+    monkeypatch.setattr(cli_output, "console", lambda stderr=False: Console(
+        file=screen, force_terminal=True, width=100))
+    with cli_output.RayProgress(1000, "frame 7") as progress:
+        progress.advance(400)
+        progress.advance(600)
+    assert "frame 7" in screen.getvalue() and "1000/1000" in screen.getvalue()
+
+    piped = io.StringIO()
+    monkeypatch.setattr(cli_output, "console", lambda stderr=False: Console(
+        file=piped, force_terminal=False))
+    with cli_output.RayProgress(1000, "frame 7") as progress:
+        progress.advance(1000)
+    assert piped.getvalue() == ""
