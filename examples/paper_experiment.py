@@ -97,11 +97,12 @@ import yaml
 
 from lidarsim_core.report import VizMissing, write_report
 
-noisy.save(OUT / "envisat_mid70_with_errors.npz")
-clean.save(OUT / "envisat_mid70_without_errors.npz")
+# this script may be rerun: it replaces its own files (lidarsim never does unasked)
+noisy.save(OUT / "envisat_mid70_with_errors.npz", overwrite=True)
+clean.save(OUT / "envisat_mid70_without_errors.npz", overwrite=True)
 (OUT / "scenario.yaml").write_text(yaml.safe_dump(scenario.model_dump(mode="json")))
 try:
-    report = write_report(OUT, OUT)               # the run directory is its own report folder
+    report = write_report(OUT, OUT, overwrite=True)   # the run is its own report folder
 except VizMissing as exc:
     print(f"6. no figures: {exc}")
 else:
