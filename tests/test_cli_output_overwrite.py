@@ -263,3 +263,16 @@ def test_progress_bar_draws_at_a_terminal_and_stays_silent_in_a_pipe(monkeypatch
     with cli_output.RayProgress(1000, "frame 7") as progress:
         progress.advance(1000)
     assert piped.getvalue() == ""
+
+
+def test_a_narrow_terminal_leaves_out_optional_columns_never_names():
+    from lidarsim_core.cli_output import Column, _fitting_columns
+
+    columns = [Column("name", whole=True), Column("model", optional=True), Column("fov"),
+               Column("provider", optional=True)]
+    rows = [["livox-mid70-rose", "Livox Mid-70 (seed paper's rose model)", "70.4°",
+             "lidarsim-core 0.1.0 (built-in)"]]
+    assert _fitting_columns(columns, rows, 200) == [0, 1, 2, 3]
+    assert _fitting_columns(columns, rows, 80) == [0, 1, 2]     # the last optional goes first
+    assert _fitting_columns(columns, rows, 30) == [0, 2]        # names and required stay
+    assert _fitting_columns(columns, rows, 5) == [0, 2]

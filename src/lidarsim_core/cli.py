@@ -361,9 +361,11 @@ def _sensors(as_json: bool) -> None:
                      f"{s.range_min_m:g}–{s.range_max_m:g}", f"{s.point_rate_hz:,.0f}",
                      f"{100 * s.range_precision_m:g} cm", f"{s.angular_precision_deg:g}°",
                      s.scan_pattern.name, e.provider])
-    print_table([Column("name", whole=True), Column("sensor"), Column("FOV"),
-                 Column("range m"), Column("points/s", right=True), Column("σ range"),
-                 Column("σ angle"), Column("pattern", whole=True), Column("provider")], rows)
+    print_table([Column("name", whole=True), Column("sensor", optional=True),
+                 Column("FOV", whole=True), Column("range m", whole=True),
+                 Column("points/s", right=True, whole=True),
+                 Column("σ range", optional=True), Column("σ angle", optional=True),
+                 Column("pattern", whole=True), Column("provider", optional=True)], rows)
 
 
 @app.command()
@@ -386,8 +388,9 @@ def _plugins(as_json: bool) -> None:
     if as_json:
         print_json(rows)
         return
-    print_table([Column("kind", whole=True), Column("name", whole=True), Column("provider"),
-                 Column("summary")], [list(row.values()) for row in rows])
+    print_table([Column("kind", whole=True), Column("name", whole=True),
+                 Column("provider", optional=True), Column("summary")],
+                [list(row.values()) for row in rows])
 
 
 @schema_app.command("sensor")

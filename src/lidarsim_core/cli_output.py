@@ -35,11 +35,14 @@ def stdout_is_terminal() -> bool:
 
 @dataclass(frozen=True)
 class Column:
-    """A table column: its header, alignment, and whether its cells must stay whole."""
+    """A table column: its header, alignment, whether its cells must stay whole, and whether
+    a terminal too narrow for the whole table may leave it out (``--json`` and pipes always
+    have every column)."""
 
     header: str
     right: bool = False
     whole: bool = False
+    optional: bool = False
 
 
 #: Exit code after the reader of a pipe went away (``lidarsim plugins | head``): 128 + SIGPIPE,
@@ -83,18 +86,39 @@ def print_table(columns: Sequence[Column], rows: Iterable[Sequence[Any]], *,
         return
     from rich.table import Table
 
+    out = console()
+    shown = _fitting_columns(columns, rows, out.width)
     table = Table(show_edge=False, title=title)
-    for i, col in enumerate(columns):
+    for i in shown:
+        col = columns[i]
         if col.whole:
             width = max([len(col.header)] + [len(str(r[i])) for r in rows])
             table.add_column(col.header, justify="right" if col.right else "left",
                              no_wrap=True, min_width=width)
         else:
-            table.add_column(col.header, justify="right" if col.right else "left",
-                             overflow="fold")
+            table.add_column(col.header, justify="right" if col.right else "left")
     for row in rows:
-        table.add_row(*(str(v) for v in row))
-    console().print(table, soft_wrap=False)
+        table.add_row(*(str(row[i]) for i in shown))
+    out.print(table, soft_wrap=False)
+    hidden = [c.header for i, c in enumerate(columns) if i not in shown]
+    if hidden:
+        out.print(f"({len(hidden)} columns left out at this width: {', '.join(hidden)}; "
+                  "--json or a wider terminal shows them)", style="dim")
+
+
+def _fitting_columns(columns: Sequence[Column], rows: list[list[Any]], width: int
+                     ) -> list[int]:
+    """Indices of the columns to show at a terminal ``width`` wide: optional ones are left
+    out, last first, while the table's natural width exceeds it."""
+    natural = [max([len(c.header)] + [len(str(r[i])) for r in rows]) + 3
+               for i, c in enumerate(columns)]
+    shown = list(range(len(columns)))
+    for i in reversed(range(len(columns))):
+        if sum(natural[j] for j in shown) <= width:
+            break
+        if columns[i].optional:
+            shown.remove(i)
+    return shown
 
 
 def print_json(data: Any) -> None:
