@@ -1,8 +1,10 @@
-"""A warning when a target's size says its mesh is in the wrong unit.
+"""A warning when a target's size says its mesh file is in the wrong unit.
 
 CAD files of spacecraft are often in millimetres; loaded as metres, a 8 m satellite becomes
 8 km wide, the sensor ends up inside it and every frame is empty. The scene is still valid,
-so this is a warning (not an error), and it says what to do: ``scale: 0.001``.
+so this is a warning (not an error), and it says what to do: ``scale: 0.001``. Only meshes
+read from files are checked: a target model takes its sizes in metres by name (``size_m``),
+and a 200 m plate built on purpose is not a unit mistake.
 """
 
 from __future__ import annotations
@@ -27,20 +29,22 @@ class UnitsWarning(UserWarning):
 def _advice(sim: "Simulation", index: int) -> str:
     cfg = sim.scenario.targets[index].mesh
     field = f"targets.{index}.mesh"
-    if cfg.path is not None and cfg.scale == 1.0:
+    if cfg.scale == 1.0:
         return (f"is the mesh in millimetres? add 'scale: 0.001' to {field} "
                 f"({{path: {cfg.path}, scale: 0.001}})")
     return f"check the unit of the mesh and '{field}.scale' (now {cfg.scale:g})"
 
 
 def size_warnings(sim: "Simulation") -> list[str]:
-    """Messages about targets implausibly large for a spacecraft, or read from a mesh file
-    with the sensor inside their bounding box at the start of the scan."""
+    """Messages about targets read from mesh files that are implausibly large for a
+    spacecraft, or have the sensor inside their bounding box at the start of the scan."""
     messages = []
     where = f"{sim.scenario.source}: " if sim.scenario.source else ""
     t0 = np.array([sim.scenario.scan.frame_interval(0)[0]])
     sensor = sim.sensor_trajectory.poses_at(t0).position
     for i, target in enumerate(sim.targets):
+        if sim.scenario.targets[i].mesh.path is None:
+            continue  # a target model: sizes given in metres, by name
         lo, hi = target.mesh.bounds
         size = float(np.max(hi - lo))
         local = target.trajectory.poses_at(t0).apply_inverse(sensor)[0]  # sensor, body frame
@@ -50,7 +54,7 @@ def size_warnings(sim: "Simulation") -> list[str]:
                       f"spacecraft (the ISS is 109 m)")
             if inside:
                 reason += " and the sensor is inside it"
-        elif inside and sim.scenario.targets[i].mesh.path is not None:
+        elif inside:
             reason = (f"the sensor is inside the bounding box of target '{target.name}' "
                       f"({size:,.3g} m across, read from a file)")
         else:
