@@ -1,14 +1,24 @@
-"""Generate the reference pages of the documentation from the code itself.
+"""Generate the documentation's derived text from the code itself, into files committed in the repo.
 
-Run by the mkdocs-gen-files plugin at every ``mkdocs build`` (see ``mkdocs.yml``), so the pages
-cannot drift from the pydantic models and the catalogue:
+The pages read the same in the repository and on the site; ``tests/test_docs.py`` fails when
+any of them is out of date. After changing a model, a plugin, a datasheet or an example, run::
+
+    python docs/gen_reference.py            # rewrite what is stale
+    python docs/gen_reference.py --check    # only say what is stale (exit 1)
+
+It writes the reference pages
 
 * ``reference/scenario.md`` — every scenario field, from :class:`lidarsim_core.scenario.Scenario`,
   and the options of every built-in trajectory, noise model, ray backend, target model and
   exporter, from their ``Options`` models;
 * ``reference/datasheet.md`` — every datasheet field, from
   :class:`lidarsim_core.datasheet.SensorDatasheet`, and the options of every scan pattern;
-* ``reference/sensors.md`` — the built-in sensor catalogue, one row per file in ``sensors/``.
+* ``reference/sensors.md`` — the built-in sensor catalogue, one row per file in ``sensors/``;
+
+and renders code from the examples into the guides: a fenced block right after a line
+``<!-- code from examples/paper_experiment.py:sensor -->`` is replaced by the lines between
+``# [start:sensor]`` and ``# [end:sensor]`` of that file (the example runs in the tests, so the
+code the tutorial shows runs too).
 
 Only built-in plugins are documented: third-party entry points are switched off here.
 """
@@ -16,6 +26,7 @@ Only built-in plugins are documented: third-party entry points are switched off 
 from __future__ import annotations
 
 import os
+import re
 import types
 import typing
 from pathlib import Path
@@ -157,7 +168,7 @@ def scenario_reference() -> str:
     parts = [
         "# Scenario reference\n",
         "Generated from `lidarsim_core.scenario.Scenario` and the built-in plugins' `Options` "
-        "models at every documentation build. Unknown keys are errors; a wrong value is "
+        "models (`python docs/gen_reference.py`). Unknown keys are errors; a wrong value is "
         "reported as one line naming the file and the dotted field (e.g. "
         "`targets.0.pose.position_m`). The JSON schema: `lidarsim schema scenario`. "
         "For a guided tour see [Scenario files](../scenario.md).\n",
@@ -182,7 +193,7 @@ def datasheet_reference() -> str:
     return "\n".join([
         "# Datasheet reference\n",
         "Generated from `lidarsim_core.datasheet.SensorDatasheet` and the built-in scan "
-        "patterns' `Options` models at every documentation build. JSON schema: "
+        "patterns' `Options` models (`python docs/gen_reference.py`). JSON schema: "
         "`lidarsim schema sensor`. Every value carries its unit in its name; every datasheet "
         "names its `sources`, and values that are estimates are listed in "
         "`estimated_fields`. See the [vendor guide](../vendor_guide.md) to write one.\n",
@@ -214,9 +225,9 @@ def sensor_catalogue() -> str:
     sheets = catalogue_sheets()
     lines = [
         "# Built-in sensor catalogue\n",
-        f"Generated from the {len(sheets)} datasheets in `sensors/` at every documentation "
-        "build (`lidarsim sensors` prints the same list, with plugins' sensors). σ are 1σ "
-        "precisions. Each sensor's section below gives its sources and the values that are "
+        f"Generated from the {len(sheets)} datasheets in `sensors/` by "
+        "`python docs/gen_reference.py` (`lidarsim sensors` prints the same list, with "
+        "plugins' sensors). σ are 1σ precisions. Each sensor's section below gives its sources and the values that are "
         "estimates rather than datasheet figures.\n",
         "| name | sensor | FOV | range (m) | points/s | σ range | σ angle | pattern |",
         "|---|---|---|---|---|---|---|---|",
@@ -258,15 +269,61 @@ PAGES = {
 }
 
 
-def write_pages() -> None:
-    """Write every generated page into the documentation being built."""
-    import mkdocs_gen_files
-
-    for path, build in PAGES.items():
-        with mkdocs_gen_files.open(path, "w") as stream:
-            stream.write(build())
-        mkdocs_gen_files.set_edit_path(path, "gen_reference.py")
+#: ``<!-- code from FILE:SECTION -->`` followed by a fenced code block.
+_INCLUDE = re.compile(r"(<!-- code from (?P<file>[^:\s]+):(?P<section>[\w-]+) -->\n"
+                      r"```(?P<lang>\w*)\n)(?P<body>.*?)(^```$)", re.S | re.M)
 
 
-if __name__ in ("__main__", "<run_path>"):
-    write_pages()
+def example_section(file: str, section: str) -> str:
+    """The lines of ``file`` (relative to the repository) between ``# [start:SECTION]`` and
+    ``# [end:SECTION]``."""
+    text = (ROOT / file).read_text(encoding="utf-8")
+    match = re.search(rf"^# \[start:{re.escape(section)}\]\n(.*?)^# \[end:{re.escape(section)}\]$",
+                      text, re.S | re.M)
+    if match is None:
+        raise KeyError(f"{file}: no section {section!r} (# [start:{section}] ... "
+                       f"# [end:{section}])")
+    return match.group(1)
+
+
+def render_includes(markdown: str) -> str:
+    """``markdown`` with every ``<!-- code from FILE:SECTION -->`` block filled from FILE."""
+    return _INCLUDE.sub(lambda m: m.group(1) + example_section(m["file"], m["section"])
+                        + m.group(6), markdown)
+
+
+def expected_files() -> dict[Path, str]:
+    """Every generated file (absolute path) with the text it must hold."""
+    out = {ROOT / "docs" / path: build() for path, build in PAGES.items()}
+    for page in sorted((ROOT / "docs").glob("*.md")):
+        text = page.read_text(encoding="utf-8")
+        if _INCLUDE.search(text):
+            out[page] = render_includes(text)
+    return out
+
+
+def stale_files() -> list[Path]:
+    """The generated files whose committed text differs from what the code gives."""
+    return [path for path, text in expected_files().items()
+            if not path.is_file() or path.read_text(encoding="utf-8") != text]
+
+
+def main(argv: list[str] | None = None) -> int:
+    import sys
+
+    args = sys.argv[1:] if argv is None else argv
+    stale = stale_files()
+    if "--check" in args:
+        for path in stale:
+            print(f"out of date: {path.relative_to(ROOT)} (run: python docs/gen_reference.py)")
+        return 1 if stale else 0
+    expected = expected_files()
+    for path in stale:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(expected[path], encoding="utf-8")
+        print(f"wrote {path.relative_to(ROOT)}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

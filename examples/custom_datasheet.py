@@ -69,7 +69,7 @@ print(f"{len(cloud):,} points of {cloud.frame.rays_emitted:,} rays on the box; r
       f"{cloud['range_true'].min():.2f}–{cloud['range_true'].max():.2f} m; range error σ "
       f"{1e3 * err.std():.1f} mm (datasheet {1e3 * sheet.range_precision_m:g} mm)")
 assert len(cloud) > 0 and np.all(np.abs(np.degrees(cloud["azimuth"])) <= 15 + 1e-6)
-cloud.save(OUT / "acme-rs1_box.ply")
+cloud.save(OUT / "acme-rs1_box.ply", overwrite=True)  # a rerun replaces its own file
 
 # a wrong value: one line naming the file and the field
 broken = dict(DATASHEET, fov_h_deg=200.0)

@@ -23,7 +23,7 @@ OUT = Path(sys.argv[1] if len(sys.argv) > 1 else "paper-out")
 DURATION_S = float(os.environ.get("LIDARSIM_EXAMPLE_DURATION", "1.0"))
 OUT.mkdir(parents=True, exist_ok=True)
 
-# --8<-- [start:sensor]
+# [start:sensor]
 import lidarsim_core as ls
 
 sheet = ls.get_sensor("livox-mid70-rose")
@@ -31,9 +31,9 @@ print(f"1. sensor: {sheet.manufacturer} {sheet.model}")
 print(f"   {sheet.fov_type} FOV {sheet.fov_h_deg:g}°, {sheet.point_rate_hz:,.0f} points/s, "
       f"range {sheet.range_max_m:g} m, σ_range {100 * sheet.range_precision_m:g} cm, "
       f"σ_angle {sheet.angular_precision_deg:g}°")
-# --8<-- [end:sensor]
+# [end:sensor]
 
-# --8<-- [start:pattern]
+# [start:pattern]
 from lidarsim_core.patterns.coverage import pattern_for
 from lidarsim_core.patterns.geometry import off_axis_angle
 
@@ -48,9 +48,9 @@ print(f"2. pattern: {len(rays):,} rays in 3 turns of {1e3 * turn_s:.2f} ms; "
       f"r = A·sin(Bφ) with A = {math.degrees(a_rad):.1f}°, B = {pattern.options.b} "
       f"({pattern.petals_per_turn} petals per turn), rotated "
       f"{pattern.options.rotation_per_turn_deg:g}° after each turn")
-# --8<-- [end:pattern]
+# [end:pattern]
 
-# --8<-- [start:scenario]
+# [start:scenario]
 from lidarsim_core.demo import demo_target_pose
 from lidarsim_core.scenario import scenario_from_dict
 
@@ -65,18 +65,18 @@ scenario = scenario_from_dict({
 })
 print(f"3. scene: Envisat body origin at {scenario.targets[0].pose.position_m} m, quaternion "
       f"{[round(q, 3) for q in scenario.targets[0].pose.quaternion_xyzw]}")
-# --8<-- [end:scenario]
+# [end:scenario]
 
-# --8<-- [start:simulate]
+# [start:simulate]
 from lidarsim_core.pipeline import Simulation
 
 noisy = Simulation(scenario).run_frame(0)
 clean = Simulation(scenario.with_updates(noise=[])).run_frame(0)
 print(f"4. ray tracing: {noisy.frame.rays_emitted:,} rays, {len(noisy):,} points with errors, "
       f"{len(clean):,} without ({noisy.frame.backend} backend)")
-# --8<-- [end:simulate]
+# [end:simulate]
 
-# --8<-- [start:errors]
+# [start:errors]
 from lidarsim_core.report.stats import angular_error_components, fit_normal, range_errors
 
 angular = fit_normal(np.degrees(angular_error_components(noisy)).ravel())
@@ -90,21 +90,22 @@ e = range_errors(noisy)
 assert np.allclose(noisy.xyz, noisy.xyz_true + e[:, None] * v_dir, atol=1e-9)
 # without errors the reported point is the surface point of the nominal ray
 assert np.array_equal(clean["range"], clean["range_true"])
-# --8<-- [end:errors]
+# [end:errors]
 
-# --8<-- [start:figures]
+# [start:figures]
 import yaml
 
 from lidarsim_core.report import VizMissing, write_report
 
-noisy.save(OUT / "envisat_mid70_with_errors.npz")
-clean.save(OUT / "envisat_mid70_without_errors.npz")
+# this script may be rerun: it replaces its own files (lidarsim never does unasked)
+noisy.save(OUT / "envisat_mid70_with_errors.npz", overwrite=True)
+clean.save(OUT / "envisat_mid70_without_errors.npz", overwrite=True)
 (OUT / "scenario.yaml").write_text(yaml.safe_dump(scenario.model_dump(mode="json")))
 try:
-    report = write_report(OUT, OUT)               # the run directory is its own report folder
+    report = write_report(OUT, OUT, overwrite=True)   # the run is its own report folder
 except VizMissing as exc:
     print(f"6. no figures: {exc}")
 else:
     print(f"6. figures: {', '.join(f.path.name for f in report.figures)} and "
           f"{report.html.name} in {OUT}/")
-# --8<-- [end:figures]
+# [end:figures]

@@ -73,12 +73,16 @@ def test_interrupted_run_resumes_to_the_same_directory(scenario, reference, tmp_
         if proc.poll() is None:
             proc.kill()
             proc.wait()
+    finished = sorted(p.name for p in frames.glob("frame_*.ply"))
     if sig == signal.SIGINT:  # a clean stop: one line, exit 130, its temporary files removed
         assert proc.returncode == 130 and "interrupted" in stderr
         assert not list(out.rglob("*.part"))
+        # the message tells the truth: what is kept, and that rerunning resumes
+        assert f"{len(finished)} of {FRAMES} frames are complete and kept" in stderr, stderr
+        assert "rerun the same command to resume" in stderr
+        assert "no partial output was kept" not in stderr
     else:
         assert proc.returncode == -signal.SIGKILL
-    finished = sorted(p.name for p in frames.glob("frame_*.ply"))
     assert 0 < len(finished) < FRAMES
     assert all(ply_is_whole(p) for p in frames.glob("frame_*.ply"))
     res = run_cli("dataset", str(scenario), "--out", str(out))

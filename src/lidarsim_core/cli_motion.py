@@ -25,7 +25,8 @@ def poses(scenario: Path = typer.Argument(..., help="Scenario file (YAML, TOML o
               None, help="Cloud file name of each frame to record beside its poses, with "
                          "'{frame}', e.g. cloud_{frame:04d}.ply."),
           frame: Optional[int] = typer.Option(None, help="Only this frame (default: all)."),
-          overwrite: bool = typer.Option(False, help="Replace an existing pose file."),
+          overwrite: bool = typer.Option(False, "--overwrite",
+                                         help="Replace an existing pose file."),
           ) -> None:
     """Write the sensor and target poses of every frame (q_target_in_sensor, scalar-last)."""
     run_guarded(lambda: _poses(scenario, out, clouds, frame, overwrite))
@@ -35,6 +36,7 @@ def _poses(path: Path, out: Path, clouds: str | None, frame: int | None,
            overwrite: bool) -> None:
     from .errors import ConfigError, OutputError
     from .groundtruth import sequence_frame_infos, write_ground_truth
+    from .outputs import check_file, make_parent
     from .scenario import load_scenario
 
     scenario = load_scenario(path)
@@ -45,11 +47,11 @@ def _poses(path: Path, out: Path, clouds: str | None, frame: int | None,
     if clouds is not None and n_frames > 1 and frame is None and "{frame" not in clouds:
         raise OutputError("--clouds needs '{frame}' in it for a sequence "
                           "(e.g. cloud_{frame:04d}.ply)", source=clouds)
-    if out.exists() and not overwrite:
-        raise OutputError("output file exists (use --overwrite to replace it)", source=out)
+    check_file(out, overwrite=overwrite)  # the one overwrite policy (lidarsim_core.outputs)
     indices = [frame] if frame is not None else list(range(n_frames))
     infos = sequence_frame_infos(scenario, indices)
     names = [clouds.format(frame=f) for f in indices] if clouds is not None else None
+    make_parent(out)
     write_ground_truth(out, infos, clouds=names, overwrite=overwrite)
     typer.echo(f"wrote poses of {len(infos)} frame(s) and {len(infos[0].target_names)} "
                f"target(s) to {out}")

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import io
-import json
 from pathlib import Path
 from typing import Any
 
@@ -13,9 +12,9 @@ from .cli import app, run_guarded
 
 
 def _console() -> Any:
-    from rich.console import Console
+    from .cli_output import console
 
-    return Console(highlight=False)
+    return console()
 
 
 def _pattern(sensor: str, options: list[str]) -> Any:
@@ -50,7 +49,8 @@ def pattern(sensor: str = typer.Argument(..., help="Catalogue name or datasheet 
             start: float = typer.Option(0.0, "--start", help="Start time (s from scan start)."),
             option: list[str] = typer.Option([], "--option", help="Pattern option override, "
                                                                  "KEY=VALUE (repeatable)."),
-            overwrite: bool = typer.Option(False, help="Replace an existing output file."),
+            overwrite: bool = typer.Option(False, "--overwrite",
+                                           help="Replace an existing output file."),
             ) -> None:
     """Write the rays a sensor emits: t (s), direction (N, 3) in the sensor frame, channel."""
     run_guarded(lambda: _export(sensor, duration, out, start, option, overwrite))
@@ -62,17 +62,20 @@ def _export(sensor: str, duration: float, out: Path, start: float, options: list
 
     from .errors import OutputError
     from .io.base import atomic_output
+    from .outputs import check_file, make_parent
 
     _check_positive(duration, "--duration")
     if out.suffix.lower() != ".npz":
         raise OutputError("the ray export is written as .npz; give a file ending in .npz",
                           source=out)
+    check_file(out, overwrite=overwrite)  # the one overwrite policy (lidarsim_core.outputs)
     pat = _pattern(sensor, options)
     batch = pat.rays(start, start + duration)
     buffer = io.BytesIO()
     np.savez_compressed(buffer, t=batch.t, direction=batch.direction, channel=batch.channel,
                         index=batch.index, sensor=np.array(pat.sensor.name),
                         pattern=np.array(pat.name))
+    make_parent(out)
     with atomic_output(out, overwrite=overwrite) as stream:
         stream.write(buffer.getvalue())
     _console().print(f"{pat.sensor.name} ({pat.name}): {len(batch):,} rays in "
@@ -96,8 +99,7 @@ def coverage(sensor: str = typer.Argument(..., help="Catalogue name or datasheet
 
 def _coverage(sensor: str, time_s: float, cell_deg: float, bin_deg: float, start: float,
               options: list[str], as_json: bool) -> None:
-    from rich.table import Table
-
+    from .cli_output import Column, print_json, print_table
     from .patterns.coverage import fov_coverage
 
     _check_positive(time_s, "--time")
@@ -106,17 +108,14 @@ def _coverage(sensor: str, time_s: float, cell_deg: float, bin_deg: float, start
     report = fov_coverage(_pattern(sensor, options), time_s, cell_deg, t_start_s=start,
                           bin_deg=bin_deg)
     if as_json:
-        typer.echo(json.dumps(report.to_dict(), indent=2))
+        print_json(report.to_dict())
         return
     console = _console()
     console.print(f"[bold]{report.sensor}[/] ({report.pattern}): {100 * report.coverage:.1f} % "
                   f"of {report.cells_in_fov:,} cells of {cell_deg:g}° hit in {time_s:g} s "
                   f"({report.rays:,} rays; {report.projection} cells)")
-    table = Table(show_edge=False)
-    for col in ("off-axis °", "points", "solid angle deg²", "points/deg²", "points/deg²/s"):
-        table.add_column(col, justify="right")
-    for b in report.density:
-        table.add_row(f"{b.off_axis_lo_deg:g}–{b.off_axis_hi_deg:g}", f"{b.points:,}",
-                      f"{b.solid_angle_deg2:.1f}", f"{b.points_per_deg2:.3g}",
-                      f"{b.points_per_deg2_per_s:.3g}")
-    console.print(table)
+    print_table([Column(c, right=True) for c in ("off-axis °", "points", "solid angle deg²",
+                                                 "points/deg²", "points/deg²/s")],
+                [[f"{b.off_axis_lo_deg:g}–{b.off_axis_hi_deg:g}", f"{b.points:,}",
+                  f"{b.solid_angle_deg2:.1f}", f"{b.points_per_deg2:.3g}",
+                  f"{b.points_per_deg2_per_s:.3g}"] for b in report.density])

@@ -29,14 +29,17 @@ def report(run: Path = typer.Argument(..., help="Run directory: lidarsim .npz cl
            cell_deg: float = typer.Option(0.5, "--cell-deg", help="Coverage-map cell (deg)."),
            no_3d: bool = typer.Option(False, "--no-3d", help="Only the 2-D figures (no OpenGL "
                                                              "needed)."),
+           overwrite: bool = typer.Option(False, "--overwrite", help="Replace report files "
+                                          "already in --out."),
            ) -> None:
     """Write the report of a run: PNG figures after the seed paper's and one HTML page."""
     run_guarded(lambda: _report(run, out, scenario, frame, color_by, coverage_time, cell_deg,
-                                not no_3d))
+                                not no_3d, overwrite))
 
 
 def _report(run: Path, out: Path | None, scenario: Path | None, frame: int | None,
-            color_by: str, coverage_time: float | None, cell_deg: float, three_d: bool) -> None:
+            color_by: str, coverage_time: float | None, cell_deg: float, three_d: bool,
+            overwrite: bool = False) -> None:
     from .errors import ConfigError
     from .report import write_report
 
@@ -46,16 +49,18 @@ def _report(run: Path, out: Path | None, scenario: Path | None, frame: int | Non
     if not cell_deg > 0:
         raise ConfigError(f"--cell-deg must be > 0, got {cell_deg:g}", field="--cell-deg")
     result = write_report(run, out, scenario=scenario, frame=frame, colour_by=color_by,
-                          coverage_time_s=coverage_time, cell_deg=cell_deg, three_d=three_d)
+                          coverage_time_s=coverage_time, cell_deg=cell_deg, three_d=three_d,
+                          overwrite=overwrite)
     print_report_summary(result)
 
 
 def print_report_summary(result: Any) -> None:
     """Print where a report went, its key numbers and its notes (used by ``demo`` too)."""
-    from rich.console import Console
     from rich.markup import escape
 
-    console = Console(highlight=False)
+    from .cli_output import console as make_console
+
+    console = make_console()
     s = result.summary
     parts = []
     if "angular_sigma_deg" in s:
@@ -74,20 +79,23 @@ def print_report_summary(result: Any) -> None:
                   f"{result.out_dir}/")
 
 
-def demo_report(out: Path) -> None:
-    """The report of a ``lidarsim demo`` run, written into the demo's directory ``out``.
+def demo_report(out: Path, *, quiet: bool = False) -> Any:
+    """The report of a ``lidarsim demo`` run, written into the demo's directory ``out``
+    (whose files the demo has checked against the overwrite policy); returns the
+    :class:`~lidarsim_core.report.Report`, or None without the viz extra.
 
     Without the viz extra the demo still succeeds: one line says how to get the figures.
     """
-    from rich.console import Console
     from rich.markup import escape
 
+    from .cli_output import console
     from .report import VizMissing, write_report
 
     try:
-        result = write_report(out, out)
+        result = write_report(out, out, overwrite=True)
     except VizMissing as exc:
-        Console(highlight=False).print(f"[yellow]note:[/] no report figures: {escape(str(exc))}",
-                                       soft_wrap=True)
-        return
-    print_report_summary(result)
+        console().print(f"[yellow]note:[/] no report figures: {escape(str(exc))}")
+        return None
+    if not quiet:
+        print_report_summary(result)
+    return result

@@ -191,7 +191,7 @@ def validate_model(model: type[BaseModel], data: Any, *, source: str | Path | No
     try:
         return model.model_validate(data, context=context)
     except ValidationError as exc:
-        field, msg = first_validation_error(exc, prefix)
+        field, msg = first_validation_error(exc, prefix, model)
         # a check across fields ('<root>') names its fields in the message itself
         raise ConfigError(msg, source=source, field=None if field == "<root>" else field) \
             from None

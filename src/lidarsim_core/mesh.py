@@ -131,9 +131,20 @@ class Mesh:
 
 def load_mesh_file(path: str | Path, *, scale: float = 1.0, source: str | None = None,
                    field: str | None = None) -> Mesh:
-    """Read any mesh format trimesh reads; each named object of a scene becomes a part.
+    """Read any mesh format trimesh reads, with part labels from the format's own grouping.
 
-    A part whose geometry carries a colour (an OBJ/MTL ``Kd``, a glTF base colour, defined
+    Parts (the ``part`` column of every point; ``docs/scenario.md#part-labels``):
+
+    * OBJ: every ``o`` object and ``g`` group, in file order;
+    * STL: every ``solid NAME`` ... ``endsolid`` block of an ASCII STL (a binary STL, or an
+      ASCII one with a single solid, is one part named after the file);
+    * GLB/GLTF: every node with geometry, by node name;
+    * PLY: a per-face integer property ``part`` (or ``label``, ``part_id``, ``segment``,
+      ``object_id``), named by header lines ``comment part <id> <name>`` where present,
+      else ``part_<id>``; without one, one part named after the file;
+    * anything else: one part named after the file.
+
+    Pieces with the same name share a label. A part whose geometry carries a colour (an OBJ/MTL ``Kd``, a glTF base colour, defined
     face colours) gets a default material from it
     (:func:`lidarsim_core.materials.material_from_colour`).
 
@@ -162,12 +173,19 @@ def load_mesh_file(path: str | Path, *, scale: float = 1.0, source: str | None =
     problem = _truncation(path)
     if problem:
         raise MeshError(problem, source=where)
+    suffix = path.suffix.lower()
+    # OBJ: one geometry per 'o' object and 'g' group (trimesh merges them by material else)
+    options = {"split_objects": True, "split_groups": True} if suffix == ".obj" else {}
     try:
-        loaded = trimesh.load(str(path), process=False)
+        loaded = trimesh.load(str(path), process=False, **options)
     except Exception as exc:  # trimesh raises many types for garbage input
         raise MeshError(f"cannot read mesh: {type(exc).__name__}: {exc}", source=where) from None
     parts: list[tuple[str, np.ndarray, np.ndarray, Any]] = []
-    if isinstance(loaded, trimesh.Scene):
+    if isinstance(loaded, trimesh.Trimesh) and suffix == ".ply":
+        parts = _ply_face_parts(path, loaded)
+    if parts:
+        pass
+    elif isinstance(loaded, trimesh.Scene):
         for node in loaded.graph.nodes_geometry:
             transform, geom_name = loaded.graph[node]
             geom = loaded.geometry.get(geom_name)
@@ -180,7 +198,66 @@ def load_mesh_file(path: str | Path, *, scale: float = 1.0, source: str | None =
                       np.asarray(loaded.faces), _colour_material(loaded)))
     if not parts or all(len(p[2]) == 0 for p in parts):
         raise MeshError("mesh file contains no triangles", source=where)
+    if suffix == ".obj":
+        parts = _in_file_order(path, parts)
     return merge_parts(parts, name=path.stem, scale=scale, source=where)
+
+
+#: Per-face integer properties of a PLY mesh read as part labels, in order of preference.
+PLY_PART_PROPERTIES = ("part", "label", "part_id", "segment", "object_id")
+
+
+def _ply_header_lines(path: Path) -> list[str]:
+    lines = []
+    with path.open("rb") as stream:
+        for raw in stream:
+            line = raw.decode("latin-1").strip()
+            lines.append(line)
+            if line == "end_header" or len(lines) > 10_000:
+                break
+    return lines
+
+
+def _ply_face_parts(path: Path, mesh: Any) -> list[tuple[str, np.ndarray, np.ndarray, Any]]:
+    """The parts of a PLY mesh with a per-face label property (empty list without one)."""
+    raw = (mesh.metadata or {}).get("_ply_raw", {}).get("face", {}).get("data", {})
+    # a dict of columns (ASCII PLY) or a structured array (binary PLY)
+    fields = raw.dtype.names or () if isinstance(raw, np.ndarray) else tuple(raw)
+    key = next((k for k in PLY_PART_PROPERTIES if k in fields), None)
+    if key is None:
+        return []
+    labels = np.asarray(raw[key]).reshape(-1)
+    if len(labels) != len(mesh.faces) or not np.issubdtype(labels.dtype, np.integer):
+        return []
+    names: dict[int, str] = {}
+    for line in _ply_header_lines(path):
+        words = line.split(maxsplit=3)
+        if len(words) == 4 and words[0] == "comment" and words[1] == key and \
+                words[2].lstrip("-").isdigit():
+            names[int(words[2])] = words[3].strip()
+    vertices = np.asarray(mesh.vertices, dtype=np.float64)
+    faces = np.asarray(mesh.faces)
+    material = _colour_material(mesh)
+    parts = []
+    for value in np.unique(labels):
+        used, local = np.unique(faces[labels == value], return_inverse=True)  # its vertices
+        parts.append((names.get(int(value), f"part_{int(value)}"), vertices[used],
+                      local.reshape(-1, 3), material))
+    return parts
+
+
+def _in_file_order(path: Path, parts: list[tuple]) -> list[tuple]:
+    """OBJ parts in the order their ``o``/``g`` lines appear in the file."""
+    import re
+
+    try:
+        text = path.read_text(encoding="utf-8", errors="replace")
+    except OSError:
+        return parts
+    order: dict[str, int] = {}
+    for match in re.finditer(r"^[og][ \t]+(.+?)[ \t]*$", text, re.M):
+        order.setdefault(match.group(1), len(order))
+    return sorted(parts, key=lambda p: order.get(p[0], len(order)))
 
 
 def _truncation(path: Path) -> str | None:

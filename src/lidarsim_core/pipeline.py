@@ -51,6 +51,7 @@ from .guard import check_sensor_outside, guard_components, interrupt_behind
 from .errors import ConfigError, LidarsimError, PluginError
 from .materials import Material, MaterialTable, material_library, part_materials
 from .mesh import Mesh, load_mesh_file
+from .units import warn_about_units
 from .noise.base import NoiseContext, NoiseModel, perpendicular_basis
 from .noise.outliers import SpuriousReturnModel
 from .patterns.base import RayBatch, ScanPattern
@@ -150,6 +151,7 @@ class Simulation:
             self.targets.append(Target(cfg.name, mesh, traj, offset))
             offset += len(mesh.part_names)
         self.part_names = [f"{t.name}/{p}" for t in self.targets for p in t.mesh.part_names]
+        warn_about_units(self)  # a mesh in millimetres: a warning that suggests 'scale'
         self._setup_measurement(scenario)
         #: Plan for skipping pulses that cannot reach a target (None: every pulse is cast).
         self.culler: PulseCuller | None = PulseCuller.for_simulation(self)
@@ -248,7 +250,7 @@ class Simulation:
     def frame_rays(self, frame: int) -> tuple[int, int]:
         """Global ray index range ``[k0, k1)`` of ``frame``."""
         t0, t1 = self.scenario.scan.frame_interval(frame)
-        return self.pattern.index_range(t0, t1)
+        return self.pattern.frame_index_range(t0, t1)  # a flash LiDAR's frame: one flash
 
     def _noise_contexts(self, frame: int) -> list[NoiseContext]:
         return [NoiseContext(self.sensor, self.scenario.seed, frame, f"noise.{i}.{m.name}")

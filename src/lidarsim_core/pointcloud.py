@@ -95,6 +95,12 @@ class FrameInfo:
     extra: dict[str, Any] = field(default_factory=dict)
     targets_in_sensor_end: list[dict[str, list[float]]] = field(default_factory=list)
 
+    def __repr__(self) -> str:
+        return (f"FrameInfo(frame={self.frame}, t={self.t_start:g}–{self.t_end:g} s, "
+                f"sensor={self.sensor!r}, targets={self.target_names!r}, "
+                f"rays_emitted={self.rays_emitted:,}, seed={self.seed}, "
+                f"backend={self.backend!r})")
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready dictionary."""
         return dict(self.__dict__)
@@ -122,6 +128,12 @@ class PointCloud:
 
     def __len__(self) -> int:
         return len(self.columns["x"])
+
+    def __repr__(self) -> str:
+        f = self.frame
+        return (f"PointCloud({len(self):,} points from {f.rays_emitted:,} rays, frame {f.frame}, "
+                f"t={f.t_start:g}–{f.t_end:g} s, sensor={f.sensor!r}, "
+                f"targets={f.target_names!r}, {len(self.columns)} columns)")
 
     def __getitem__(self, name: str) -> np.ndarray:
         return self.columns[name]
@@ -170,13 +182,27 @@ class PointCloud:
         """The frame metadata as a compact JSON string."""
         return json.dumps(self.frame.to_dict(), sort_keys=True, separators=(",", ":"))
 
-    def save(self, path: str | Path, *, format: str | None = None, overwrite: bool = True) -> Path:
+    def save(self, path: str | Path, *, format: str | None = None,
+             overwrite: bool = False) -> Path:
         """Write the cloud with the exporter chosen by ``format`` or the path's suffix.
 
-        The file is written atomically (temporary file, then rename).
+        The file and its sidecar ``<file name>.json`` are written atomically (temporary
+        file, then rename); a missing folder is created. As on the command line, an existing
+        file is replaced only with ``overwrite=True`` (:mod:`lidarsim_core.outputs`).
+
+        Raises
+        ------
+        OutputError
+            If the file (or its sidecar) exists and ``overwrite`` is False, or the place
+            cannot be written.
         """
         from .io.base import write_cloud
+        from .io.sidecar import sidecar_path
+        from .outputs import API_HINT, check_file, make_parent
 
+        check_file(path, overwrite=overwrite, hint=API_HINT)
+        check_file(sidecar_path(path), overwrite=overwrite, hint=API_HINT)
+        make_parent(path)
         return write_cloud(self, path, format=format, overwrite=overwrite)
 
     def range_image(self, pattern: Any = None) -> Any:

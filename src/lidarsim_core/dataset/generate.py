@@ -370,12 +370,19 @@ def _run(plan: DatasetPlan, root: Path, sequences: list[_Sequence], exporter: An
                                str(seq.copy_path), exporter.name,
                                exporter.options.model_dump(mode="json"), spool_memory)
 
-    with FrameProgress(total - skipped, quiet=quiet, already=skipped) as progress:
-        on_result = lambda result: progress.frame_done(result["points"])  # noqa: E731
-        if workers is None and scheduler is None:
-            run_serial(jobs(), on_result)
-        else:
-            run_dask(jobs(), on_result, workers=workers, scheduler=scheduler)
+    try:
+        with FrameProgress(total - skipped, quiet=quiet, already=skipped) as progress:
+            on_result = lambda result: progress.frame_done(result["points"])  # noqa: E731
+            if workers is None and scheduler is None:
+                run_serial(jobs(), on_result)
+            else:
+                run_dask(jobs(), on_result, workers=workers, scheduler=scheduler)
+    except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM: say what is kept, and how to go on
+        kept = sum(frame_is_complete(s.root / frame_relpath(f, suffix)) is not None
+                   for s in sequences for f in range(s.frames))
+        raise type(exc)(f"{kept} of {total} frames are complete and kept in "
+                        f"{root} (no partial frame file); rerun the same command to resume"
+                        ) from None
     _finish(root, sequences, identity, summaries, split_record, suffix)
     return DatasetResult(root, total, progress.written, skipped, progress.points,
                          progress.elapsed)

@@ -1,4 +1,4 @@
-"""The progress bar of a dataset run: frames, points per second and time left (rich)."""
+"""The progress bar of a dataset run: frames, frames per second and time left (rich)."""
 
 from __future__ import annotations
 
@@ -34,7 +34,7 @@ class FrameProgress:
 
             self._progress = Progress(
                 TextColumn("[bold]frames"), BarColumn(), MofNCompleteColumn(),
-                TextColumn("{task.fields[rate]} points/s"), TimeElapsedColumn(),
+                TextColumn("{task.fields[rate]} frames/s"), TimeElapsedColumn(),
                 TextColumn("ETA"), TimeRemainingColumn(),
                 console=Console(stderr=True), transient=False)
 
@@ -68,5 +68,5 @@ class FrameProgress:
 
     def _draw(self) -> None:
         if self._progress is not None:
-            self._progress.update(self._task, completed=self.written,
-                                  rate=f"{self.points_per_second():,.0f}")
+            rate = self.written / self.elapsed if self.elapsed > 0 else 0.0
+            self._progress.update(self._task, completed=self.written, rate=f"{rate:.2f}")

@@ -116,6 +116,12 @@ class ScanPattern(Component):
         """Emission time (s) of global ray ``index``."""
         return np.asarray(index, dtype=np.float64) / self.rate_hz
 
+    def frame_index_range(self, t_start: float, t_stop: float) -> tuple[int, int]:
+        """Indices ``[k0, k1)`` of the rays of one frame spanning ``[t_start, t_stop)``: every
+        ray emitted in it (:meth:`index_range`), unless the sensor has a native frame that is
+        shorter (a flash LiDAR's frame is one flash)."""
+        return self.index_range(t_start, t_stop)
+
     def rays(self, t_start: float, t_stop: float) -> RayBatch:
         """All rays emitted in ``[t_start, t_stop)`` seconds from scan start."""
         k0, k1 = self.index_range(t_start, t_stop)

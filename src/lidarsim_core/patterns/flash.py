@@ -1,7 +1,9 @@
 """Built-in plugin: a flash LiDAR, an ``rows × columns`` detector array lit by one pulse per frame.
 
 Every pixel of a frame shares the frame's time (frames start every ``1 / frame_rate_hz``), so
-a flash frame has no motion distortion within it. Ray ``k`` is pixel ``k mod (rows·columns)``
+a flash frame has no motion distortion within it. A simulated frame holds one flash (the
+sensor's native frame) whatever ``scan.duration_s`` spans, unless ``flashes_per_frame`` says
+otherwise; a sequence of flashes is a sequence of frames (``scan.frame_rate_hz``). Ray ``k`` is pixel ``k mod (rows·columns)``
 of frame ``k div (rows·columns)``, pixels in row-major order from the top-left pixel (highest
 elevation, +Y side) as seen from behind the sensor. There is one emitter: every ray has
 channel 0.
@@ -33,6 +35,10 @@ class FlashOptions(ComponentOptions):
     columns: int = Field(gt=0, le=4096, description="Detector columns (horizontal).")
     frame_rate_hz: float | None = Field(
         None, gt=0, description="Frames per second; default: point_rate_hz / (rows·columns).")
+    flashes_per_frame: int = Field(
+        1, ge=1, description="Flashes in one simulated frame: the first ones that start within "
+                             "the frame's duration_s (1: one flash, the sensor's native frame; "
+                             "a sequence of flashes is scan.frames or scan.frame_rate_hz).")
     projection: Literal["pinhole", "equiangular"] = Field(
         "pinhole", description="'pinhole': equal steps in the focal plane; 'equiangular': "
                                "equal steps in azimuth and elevation.")
@@ -54,6 +60,12 @@ class FlashPattern(CycleTimedPattern):
         """Frames per second."""
         opts = self.options
         return opts.frame_rate_hz or self.sensor.point_rate_hz / (opts.rows * opts.columns)
+
+    def frame_index_range(self, t_start: float, t_stop: float) -> tuple[int, int]:
+        """The rays of the first ``flashes_per_frame`` flashes that start in the frame."""
+        k0, k1 = self.index_range(t_start, t_stop)
+        pixels = self.options.rows * self.options.columns
+        return k0, min(k1, k0 + self.options.flashes_per_frame * pixels)
 
     def build_cycle(self) -> FiringCycle:
         n = self.options.rows * self.options.columns

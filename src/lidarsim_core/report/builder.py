@@ -80,6 +80,22 @@ class Report:
     html: Path | None = None
     json: Path | None = None
 
+    def files(self) -> list[Path]:
+        """Every file this report wrote: the figures, ``report.json`` and ``report.html``."""
+        return [f.path for f in self.figures] + [p for p in (self.json, self.html)
+                                                  if p is not None]
+
+
+#: Figures drawn with pyvista (skipped by ``three_d=False``).
+THREE_D_FIGURES = ("scene", "errors", "cloud")
+
+
+def report_files(colour_by: str = "part", *, three_d: bool = True) -> list[str]:
+    """Names of every file :func:`write_report` may write (for the overwrite check)."""
+    names = [name.format(colour_by=colour_by) for key, name in FIGURE_FILES.items()
+             if three_d or key not in THREE_D_FIGURES]
+    return names + ["report.json", "report.html"]
+
 
 def require_viz() -> None:
     """Raise :class:`VizMissing` unless matplotlib and pyvista can be imported."""
@@ -94,7 +110,8 @@ def require_viz() -> None:
 def write_report(run_dir: str | Path, out_dir: str | Path | None = None, *,
                  scenario: str | Path | None = None, frame: int | None = None,
                  colour_by: str = "part", coverage_time_s: float | None = None,
-                 cell_deg: float = 0.5, three_d: bool = True) -> Report:
+                 cell_deg: float = 0.5, three_d: bool = True,
+                 overwrite: bool = False) -> Report:
     """Read a run directory and write its report figures and page.
 
     Parameters
@@ -116,6 +133,9 @@ def write_report(run_dir: str | Path, out_dir: str | Path | None = None, *,
         Cell size of the coverage map (deg).
     three_d
         Draw the pyvista figures (7, 11, 12); False draws only the 2-D ones.
+    overwrite
+        Replace report files already in ``out_dir`` (otherwise :class:`OutputError` naming
+        them, before anything is drawn; other files there are never touched).
 
     Returns
     -------
@@ -130,10 +150,11 @@ def write_report(run_dir: str | Path, out_dir: str | Path | None = None, *,
         When the run directory, its scenario or an option is invalid.
     """
     require_viz()
+    from ..outputs import check_files
+
     run_dir = Path(run_dir)
     out = Path(out_dir) if out_dir is not None else run_dir / "report"
-    if out.exists() and not out.is_dir():
-        raise OutputError("--out must be a directory", source=out)
+    check_files(out, report_files(colour_by, three_d=three_d), overwrite=overwrite)
     run = load_run(run_dir, scenario=scenario, frame=frame)
     from .colouring import point_colours
 
@@ -251,10 +272,16 @@ def _three_d_figures(run: Run, out: Path, colour_by: str, report: Report) -> Non
         "The targets at their poses at frame start, in the scene frame, and the LiDAR (red) "
         "with its axes (+X boresight red, +Y green, +Z blue) and its datasheet field of view."))
     scene.errors_figure(run, out / name["errors"])
+    if len(run.clean) >= 10:
+        views, radius = scene.patch_views(run)
+        report.summary.update(flat_patch_diameter_m=2 * radius,
+                              flat_patch_spread_without_errors_mm=views["clean"].spread_mm,
+                              flat_patch_spread_with_errors_mm=views["noisy"].spread_mm)
     report.figures.append(Figure(
         "errors", out / name["errors"], "Point clouds without and with errors (paper Fig. 11)",
         "Left: the cloud without errors; right: with the datasheet's angular and range errors "
-        "(same pulses). Top: the whole cloud, coloured by range. Middle: a flat patch face-on; "
+        "(same pulses). Top: the whole cloud, coloured by range. Middle: a flat patch face-on "
+        "(on the planar facet hit most, never across an edge); "
         "without errors the scan lines are exact, the angular error scatters the points along "
         "the surface. Bottom: the same patch edge-on with the normal axis stretched; without "
         "errors the points lie on the plane, the range error spreads them off it."))

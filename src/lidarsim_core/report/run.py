@@ -4,9 +4,10 @@ A run directory holds
 
 * the scenario that produced the clouds, as ``scenario.yaml`` (or ``.yml``, ``.toml``,
   ``.json``; ``lidarsim demo`` writes it; elsewhere pass it with ``--scenario``), and
-* one or more point clouds written by lidarsim as ``.npz`` (every column plus the frame's
-  metadata in ``frame_json``). Other ``.npz`` files (e.g. ``lidarsim pattern`` exports) are
-  ignored.
+* one or more point clouds written by lidarsim, in any format that keeps the frame metadata
+  in the file or its sidecar (``.npz``, ``.ply``, ``.pcd``, ``.las``/``.laz``, ``.csv``, see
+  :data:`CLOUD_READERS`); when the same frame is there in several formats, the most precise
+  is used (``.npz`` first). Other files (e.g. ``lidarsim pattern`` exports) are ignored.
 
 Clouds whose metadata lists no noise model are the run *without errors*, the others the run
 *with errors*. When the directory lacks one of the two for the chosen frame, the report
@@ -24,6 +25,7 @@ import numpy as np
 
 from ..datasheet import SensorDatasheet
 from ..errors import ConfigError
+from ..io.reader import read
 from ..pointcloud import PointCloud
 from ..poses import Poses
 from ..scenario import Scenario, load_scenario
@@ -94,11 +96,36 @@ class Run:
 
 
 def _is_lidarsim_cloud(path: Path) -> bool:
+    if path.suffix.lower() != ".npz":
+        return True  # the reader checks the metadata itself
     try:
         with np.load(path, allow_pickle=False) as data:
             return "frame_json" in data.files and "x" in data.files
     except (OSError, ValueError, zipfile.BadZipFile):
         return False
+
+
+#: Suffixes of the cloud formats a run may hold, most precise first (the order in which the
+#: same frame in several formats is chosen); each is read by :func:`lidarsim_core.io.reader.read`.
+CLOUD_READERS = (".npz", ".ply", ".pcd", ".las", ".laz", ".csv")
+
+
+def read_run_clouds(directory: Path) -> dict[Path, PointCloud]:
+    """Every lidarsim cloud in ``directory``, most precise format first; files that are not
+    lidarsim clouds are skipped."""
+    order = list(CLOUD_READERS)
+    paths = sorted((p for p in directory.iterdir()
+                    if p.is_file() and p.suffix.lower() in CLOUD_READERS),
+                   key=lambda p: (order.index(p.suffix.lower()), p.name))
+    clouds = {}
+    for path in paths:
+        if not _is_lidarsim_cloud(path):
+            continue
+        try:
+            clouds[path] = read(path)
+        except (ConfigError, ImportError, OSError, ValueError):
+            continue  # not a lidarsim cloud (or LAS without laspy): not part of the run
+    return clouds
 
 
 def find_scenario(directory: Path) -> Path:
@@ -132,19 +159,17 @@ def load_run(directory: str | Path, *, scenario: str | Path | None = None,
         Naming the directory when it holds no lidarsim cloud or scenario, or when the clouds
         and the scenario disagree (different sensor).
     """
-    from ..io.npz import read_npz
-
     directory = Path(directory)
     if not directory.is_dir():
-        raise ConfigError("the run must be a directory of clouds (.npz) and their scenario",
+        raise ConfigError("the run must be a directory of clouds and their scenario",
                           source=directory)
     scenario_path = Path(scenario) if scenario is not None else find_scenario(directory)
     scen = load_scenario(scenario_path)
-    clouds = {p: read_npz(p) for p in sorted(directory.glob("*.npz")) if _is_lidarsim_cloud(p)}
+    clouds = read_run_clouds(directory)
     if not clouds:
-        raise ConfigError("no point cloud written by lidarsim (.npz with frame_json) in the run "
-                          "directory; write one with `lidarsim simulate ... --out DIR/cloud.npz`",
-                          source=directory)
+        raise ConfigError(f"no point cloud written by lidarsim ({', '.join(CLOUD_READERS)}) in "
+                          "the run directory; write one with `lidarsim simulate ... --out "
+                          "DIR/cloud.npz`", source=directory)
     frames = sorted({c.frame.frame for c in clouds.values()})
     chosen = frames[0] if frame is None else frame
     if chosen not in frames:

@@ -15,6 +15,7 @@ Clouds are drawn in the sensor frame, with the meshes at their pose at frame sta
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -137,21 +138,51 @@ def _add_coloured_points(plotter: Any, points: np.ndarray, colours: PointColours
         return
     cloud = pv.PolyData(np.ascontiguousarray(points))
     cloud.point_data[colours.label] = colours.values
+    if clim is None:
+        finite = colours.values[np.isfinite(colours.values)]
+        clim = (float(finite.min()), float(finite.max())) if len(finite) else (0.0, 1.0)
+    lo, hi, labels, fmt = nice_ticks(*clim)
     place = {"vertical": False, "position_x": 0.3, "position_y": 0.03, "width": 0.4,
              "height": 0.08} if bar_below else \
         {"vertical": True, "position_x": 0.88, "position_y": 0.15, "height": 0.6, "width": 0.06}
+    new_bar = colours.label not in plotter.scalar_bars  # linked subplots share one bar
     plotter.add_mesh(cloud, scalars=colours.label, cmap="turbo", point_size=size,
-                     render_points_as_spheres=True, clim=clim,
-                     scalar_bar_args={"title": colours.label, "color": "black", "fmt": "%.4g",
-                                      **place})
+                     render_points_as_spheres=True, clim=(lo, hi),
+                     scalar_bar_args={"title": colours.label, "color": "black", "fmt": fmt,
+                                      "n_labels": labels, "title_font_size": 14,
+                                      "label_font_size": 12, **place})
+    if bar_below and new_bar:  # VTK writes a horizontal bar's title over its tick labels
+        plotter.scalar_bars[colours.label].SetTitle("")
+        plotter.add_text(colours.label, position=(0.29, 0.045), viewport=True, font_size=9,
+                         color="black").GetTextProperty().SetJustificationToRight()
 
 
 def _legend(plotter: Any, names: list[str], indices: Any, face: str) -> None:
-    """A compact legend of part colours in the lower-right corner."""
+    """A legend of part colours in the lower-right corner, wide enough for the longest name
+    (VTK scales the text to the box: a box too narrow cuts the names)."""
     rows = len(names)
-    plotter.add_legend([[name, part_colour(int(i))] for name, i in zip(names, indices)],
-                       bcolor="white", size=(0.16, min(0.028 * rows + 0.01, 0.5)),
-                       loc="lower right", face=face, background_opacity=0.8)
+    longest = max((len(n) for n in names), default=4)
+    height = min(0.028 * rows + 0.01, 0.5)
+    width = min(0.45, max(0.16, 0.02 + 0.01 * longest))  # VTK shrinks the text to fit
+    legend = plotter.add_legend([[name, part_colour(int(i))] for name, i in zip(names, indices)],
+                                bcolor="white", size=(width, height), loc="lower right",
+                                face=face, background_opacity=0.8)
+    # pyvista places a right-hand legend by its height, not its width: put it inside
+    legend.SetPosition(1.0 - width - 0.02, 0.05)
+
+
+def nice_ticks(lo: float, hi: float, max_ticks: int = 6) -> tuple[float, float, int, str]:
+    """A colour-bar range widened to round numbers: ``(lo, hi, labels, printf format)``, the
+    labels at a step of 1, 2 or 5 times a power of ten with as many decimals as it needs."""
+    if not (math.isfinite(lo) and math.isfinite(hi)) or hi <= lo:
+        return lo, hi if hi > lo else lo + 1.0, 2, "%.4g"
+    raw = (hi - lo) / (max_ticks - 1)
+    power = 10 ** math.floor(math.log10(raw))
+    step = next(m * power for m in (1, 2, 5, 10) if m * power >= raw)
+    start, stop = math.floor(lo / step) * step, math.ceil(hi / step) * step
+    labels = int(round((stop - start) / step)) + 1
+    decimals = max(0, -math.floor(math.log10(step) + 1e-9))
+    return start, stop, labels, f"%.{decimals}f"
 
 
 def _meshes_in_sensor_frame(run: Run) -> list[Any]:
@@ -224,15 +255,53 @@ def _fov_text(sheet: SensorDatasheet) -> str:
 
 
 # ---- Fig. 11: without and with errors ---------------------------------------------------
-def flat_patch(points: np.ndarray, part: np.ndarray, n_points: int = 1500
-               ) -> tuple[np.ndarray, np.ndarray, float]:
-    """A flat patch to zoom on: centre, unit normal (toward the sensor at the origin), radius.
+def plane_keys(cloud: Any, targets: Any) -> np.ndarray:
+    """For every point, the plane of the target meshes it hit as a row ``(target, unit
+    normal, offset)`` (NaN for false alarms), comparable between clouds of the same targets.
 
-    Takes the part with most points, the point nearest that part's median, the ``n_points``
-    points of that part nearest to it (the radius reaches the farthest), and fits a plane.
+    Faces of one target with the same unit normal and the same offset along it (to 0.1 mm,
+    in the body frame, so motion does not matter) lie in one plane, whether or not they
+    touch.
     """
-    labels, counts = np.unique(part, return_counts=True)
-    mine = points[part == labels[np.argmax(counts)]]
+    keys = np.full((len(cloud), 5), np.nan)
+    target, face = cloud["target"].astype(np.int64), cloud["face_index"].astype(np.int64)
+    for t, tgt in enumerate(targets):
+        rows = np.flatnonzero((target == t) & (face >= 0))
+        if not len(rows):
+            continue
+        mesh = tgt.mesh
+        normals = mesh.face_normals[face[rows]]
+        offsets = np.einsum("ij,ij->i", normals, mesh.vertices[mesh.faces[face[rows], 0]])
+        keys[rows] = np.column_stack([np.full(len(rows), t), np.round(normals, 4),
+                                      np.round(offsets, 4)])
+    return keys
+
+
+def plane_ids(clouds: list[Any], targets: Any) -> list[np.ndarray]:
+    """For every point of each cloud, an integer naming the plane it hit (the same plane has
+    the same id in every cloud; -1 for false alarms); see :func:`plane_keys`."""
+    keys = [plane_keys(c, targets) for c in clouds]
+    both = np.vstack(keys) if keys else np.zeros((0, 5))
+    ids = np.full(len(both), -1, dtype=np.int64)
+    valid = ~np.isnan(both).any(axis=1)
+    if valid.any():
+        ids[valid] = np.unique(both[valid], axis=0, return_inverse=True)[1].reshape(-1)
+    return np.split(ids, np.cumsum([len(k) for k in keys])[:-1])
+
+
+def flat_patch(points: np.ndarray, planes: np.ndarray, n_points: int = 1500
+               ) -> tuple[np.ndarray, np.ndarray, float, int]:
+    """A flat patch to zoom on: centre, unit normal (toward the sensor at the origin), radius
+    and the plane it lies on.
+
+    Takes the plane with most points (see :func:`plane_ids`), the point nearest its
+    median, the ``n_points`` points of that facet nearest to it (the radius reaches the
+    farthest), and fits a plane. The patch never straddles an edge: points of other faces are
+    not part of it.
+    """
+    labels, counts = np.unique(planes[planes >= 0], return_counts=True)
+    plane = int(labels[np.argmax(counts)])
+    mine = points[planes == plane]
     median = np.median(mine, axis=0)
     centre = mine[np.argmin(np.linalg.norm(mine - median, axis=1))]
     dist = np.linalg.norm(mine - centre, axis=1)
@@ -243,7 +312,36 @@ def flat_patch(points: np.ndarray, part: np.ndarray, n_points: int = 1500
     normal = np.linalg.svd(near - mean, full_matrices=False)[2][2]
     if normal @ (-mean) < 0:
         normal = -normal
-    return mean, normal, max(radius, 1e-3)
+    return mean, normal, max(radius, 1e-3), plane
+
+
+@dataclass
+class PatchView:
+    """The flat patch of Fig. 11 in one cloud: the points on it in the patch frame (m; x, y in
+    the plane, z along its normal) and their spread off the plane."""
+
+    local: np.ndarray
+    spread_mm: float
+
+
+def patch_views(run: Run, patch_points: int = 1500) -> tuple[dict[str, PatchView], float]:
+    """The flat patch of Fig. 11 in the clouds without and with errors (keys ``clean`` and
+    ``noisy``), and its radius (m).
+
+    A point belongs to the patch when its pulse hit the patch's planar facet (its
+    ``face_index``, so the clean cloud lies exactly on the plane) within the patch radius.
+    """
+    clean_planes, noisy_planes = plane_ids([run.clean, run.noisy], run.simulation.targets)
+    p_centre, normal, radius, plane = flat_patch(run.clean.xyz_true, clean_planes, patch_points)
+    frame = _patch_frame(normal)
+    views = {}
+    for key, cloud, planes in (("clean", run.clean, clean_planes),
+                               ("noisy", run.noisy, noisy_planes)):
+        local = (cloud.xyz - p_centre) @ frame.T
+        keep = (planes == plane) & (np.hypot(local[:, 0], local[:, 1]) < radius)
+        spread = 1e3 * float(np.std(local[keep, 2])) if keep.any() else float("nan")
+        views[key] = PatchView(local[keep], spread)
+    return views, radius
 
 
 def _patch_frame(normal: np.ndarray) -> np.ndarray:
@@ -296,30 +394,26 @@ def errors_figure(run: Run, path: str | Path, *, patch_points: int = 1500,
         _title(plotter, f"{label}: {len(cloud):,} points (cf. paper Fig. 11)", 11)
     if len(clean) < 10:
         return save_plotter(plotter, path)
-    p_centre, normal, radius = flat_patch(clean.xyz_true, clean["part"], patch_points)
-    frame = _patch_frame(normal)
+    views, radius = patch_views(run, patch_points)
     sigma = run.sensor.range_precision_m
     stretch = exaggeration or (_nice(0.08 * radius / sigma) if sigma > 0 else 1.0)
-    for col, (cloud, colour, label) in enumerate(zip((clean, noisy), (CLEAN_COLOUR, NOISY_COLOUR),
-                                                     labels)):
-        local = (cloud.xyz - p_centre) @ frame.T
-        keep = (np.hypot(local[:, 0], local[:, 1]) < radius) & \
-            (np.abs(local[:, 2]) < max(0.25 * radius, 8 * sigma))
+    for col, (key, colour, label) in enumerate(zip(("clean", "noisy"),
+                                                   (CLEAN_COLOUR, NOISY_COLOUR), labels)):
+        view = views[key]
         plotter.subplot(1, col)
-        _add_points(plotter, local[keep] * [1.0, 1.0, 0.0], 5.0, color=colour)
+        _add_points(plotter, view.local * [1.0, 1.0, 0.0], 5.0, color=colour)
         plotter.enable_parallel_projection()
         _look(plotter, np.zeros(3), np.array([0.0, 0.0, 1.0]), np.array([0.0, 1.0, 0.0]))
         plotter.camera.parallel_scale = 1.05 * radius
         _title(plotter, f"{label[:2]} flat patch face-on, {2 * radius:.2f} m across: "
-                        f"{keep.sum():,} points", 10)
+                        f"{len(view.local):,} points", 10)
         plotter.subplot(2, col)
-        _add_points(plotter, local[keep] * [1.0, 1.0, stretch], 4.0, color=colour)
+        _add_points(plotter, view.local * [1.0, 1.0, stretch], 4.0, color=colour)
         plotter.enable_parallel_projection()
         _look(plotter, np.zeros(3), np.array([0.0, -1.0, 0.0]), np.array([0.0, 0.0, 1.0]))
         plotter.camera.parallel_scale = 0.45 * radius
-        spread = 1e3 * float(np.std(local[keep, 2])) if keep.any() else float("nan")
         _title(plotter, f"{label[:2]} same patch edge-on, normal axis ×{stretch:g}: "
-                        f"spread off the plane (1 sigma) = {spread:.1f} mm", 10)
+                        f"spread off the plane (1 sigma) = {view.spread_mm:.1f} mm", 10)
     return save_plotter(plotter, path)
 
 
