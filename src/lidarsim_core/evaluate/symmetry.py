@@ -18,8 +18,9 @@ from dataclasses import dataclass
 from typing import Iterable, Literal
 
 import numpy as np
-from pydantic import BaseModel, ConfigDict, Field, field_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
+from ..components import first_validation_error
 from ..errors import ConfigError
 
 #: Most elements a finite symmetry group may have (the icosahedral group has 60).
@@ -98,8 +99,8 @@ def parse_symmetry(spec: str) -> tuple[str | None, Symmetry]:
             "centre_m": _vector(centre.strip(), "the centre", spec) if centre else (0, 0, 0)}
     try:
         return target, Symmetry(**data)
-    except ValueError as exc:
-        message = str(exc).splitlines()[-1].removeprefix("  Value error, ")
+    except ValidationError as exc:
+        _, message = first_validation_error(exc)
         raise ConfigError(f"symmetry '{spec}': {message}", field="--symmetry") from None
 
 
