@@ -110,6 +110,10 @@ class IcpOptions(ComponentOptions):
     initial_translation_error_m: float = Field(
         0.1, ge=0, description="First frame: the true position moved by this distance in a "
                                "random direction (m).")
+    deskew: bool = Field(
+        True, description="Undo the target's motion during the scan (per-point timestamps, "
+                          "velocity from the previous estimate) and refine again; the pose is "
+                          "then given at the mean timestamp of the points.")
 
 
 def _icp(mesh: _MeshIndex, model: TargetModelData, scan: np.ndarray,
@@ -161,6 +165,21 @@ def _icp(mesh: _MeshIndex, model: TargetModelData, scan: np.ndarray,
     return np.linalg.inv(sensor_to_body), fitness, rms
 
 
+def _deskew(xyz: np.ndarray, times: np.ndarray, t_ref: float, pose: np.ndarray,
+            previous: np.ndarray, dt: float) -> np.ndarray:
+    """Points moved to where they would be at ``t_ref``, for a target whose pose changes at the
+    constant rate seen between ``previous`` (``dt`` seconds earlier) and ``pose``.
+
+    The sensor-frame motion over ``dt`` is ``D = pose ∘ previous⁻¹``; a point measured at
+    ``τ`` is mapped by ``D^(−s)``, ``s = (τ − t_ref) / dt``, to first order in the motion:
+    ``p − s (ω × p + t)``, rotation part applied exactly.
+    """
+    motion = pose @ np.linalg.inv(previous)
+    rotvec = Rotation.from_matrix(motion[:3, :3]).as_rotvec()
+    s = (times - t_ref) / dt
+    return Rotation.from_rotvec(-s[:, None] * rotvec).apply(xyz) - s[:, None] * motion[:3, 3]
+
+
 def _refine(mesh: _MeshIndex, frame: FrameInput, initial: np.ndarray,
             opts: IcpOptions) -> tuple[PoseEstimate, float]:
     """ICP from ``initial`` and the RMS point-to-plane residual (m) of the result."""
@@ -199,7 +218,23 @@ class IcpTracker(PoseEstimator):
             assert frame.truth is not None
             previous = _perturb(frame.truth, opts.initial_rotation_error_deg,
                                 opts.initial_translation_error_m, _rng(frame, "icp-start"))
-        return _refine(self._mesh, frame, previous.matrix(), opts)[0]
+        estimate, _ = _refine(self._mesh, frame, previous.matrix(), opts)
+        prior = frame.previous
+        if not (opts.deskew and estimate.success and prior is not None and prior.success and
+                prior.time_s is not None):
+            return estimate
+        times = frame.timestamps
+        t_ref = float(times.mean())
+        if t_ref <= prior.time_s:
+            return estimate
+        deskewed = _deskew(frame.xyz, times, t_ref, estimate.matrix(), prior.matrix(),
+                           t_ref - prior.time_s)
+        fine = opts.model_copy(update={"correspondence_distances_m":
+                                       opts.correspondence_distances_m[-1:]})
+        pose, fitness, _ = _icp(self._mesh, frame.model, deskewed, estimate.matrix(), fine)
+        if pose is None:
+            return estimate
+        return PoseEstimate.from_matrix(pose, fitness=fitness, time_s=t_ref)
 
 
 class FpfhOptions(IcpOptions):

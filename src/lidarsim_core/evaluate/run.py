@@ -159,6 +159,8 @@ def _run_frame(seq: SequenceData, entry: Any, target: int, estimator: PoseEstima
         estimate = PoseEstimate.failure(f"raised {type(exc).__name__}: {' '.join(str(exc).split())}")
         status = "error"
     metrics: dict[str, float] | None = None
+    if status == "ok" and estimate.time_s is None:
+        estimate.time_s = t_ref  # stored, so the next frame's ``previous`` says when it was
     if status == "ok":
         t_est = estimate.time_s if estimate.time_s is not None else t_ref
         q_gt, r_gt = (q_ref, r_ref) if t_est == t_ref else seq.truth(entry.frame, target, t_est)
