@@ -6,7 +6,8 @@ HTML report. The baselines ``icp`` and ``fpfh_ransac_icp`` need Open3D (extra ``
 nothing heavy is imported here.
 """
 
-from .base import EstimationFailed, FrameInput, PoseEstimate, PoseEstimator, TargetModelData
+from .base import (EstimationFailed, FrameInput, PoseEstimate, PoseEstimator, TargetModelData,
+                   function_estimator)
 from .metrics import pose_errors
 from .run import EvaluationResult, evaluate_dataset
 from .symmetry import Symmetry, SymmetryGroup, parse_symmetry
@@ -15,5 +16,5 @@ from .symmetry import Symmetry, SymmetryGroup, parse_symmetry
 BUILTIN_MODULES: tuple[str, ...] = ("baselines",)
 
 __all__ = ["EstimationFailed", "EvaluationResult", "FrameInput", "PoseEstimate", "PoseEstimator",
-           "Symmetry", "SymmetryGroup", "TargetModelData", "evaluate_dataset", "parse_symmetry",
-           "pose_errors"]
+           "Symmetry", "SymmetryGroup", "TargetModelData", "evaluate_dataset", "function_estimator",
+           "parse_symmetry", "pose_errors"]

@@ -16,12 +16,12 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, ClassVar, Mapping
+from typing import TYPE_CHECKING, Any, Callable, ClassVar, Mapping
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..components import Component
+from ..components import Component, ComponentOptions
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..mesh import Mesh
@@ -258,3 +258,50 @@ class PoseEstimator(Component):
     def estimate(self, frame: FrameInput) -> PoseEstimate:
         """The target's pose in the sensor frame for ``frame`` (see :class:`FrameInput`)."""
         raise NotImplementedError
+
+
+def function_estimator(name: str, function: Callable[[FrameInput, Any], Any], *,
+                       options: type[ComponentOptions] = ComponentOptions,
+                       summary: str | None = None, uses_truth: bool = False,
+                       requires: tuple[str, ...] = ()) -> type[PoseEstimator]:
+    """Wrap a plain function as a pose-estimator class, ready to ``register``.
+
+    Parameters
+    ----------
+    name
+        The name users give to ``--estimator``.
+    function
+        ``function(frame, options)`` with a :class:`FrameInput` and the validated options;
+        returns a :class:`PoseEstimate`, a 4×4 body → sensor matrix, or ``None`` for "no
+        estimate for this frame".
+    options
+        Its pydantic options model (a :class:`~lidarsim_core.components.ComponentOptions`
+        subclass); none by default.
+    summary
+        One line for ``lidarsim plugins`` (default: the function's docstring's first line).
+    uses_truth, requires
+        As on :class:`PoseEstimator`.
+
+    Examples
+    --------
+    >>> def centroid_only(frame, options):
+    ...     return PoseEstimate(translation_m=frame.xyz.mean(axis=0))
+    >>> Centroid = function_estimator("centroid", centroid_only)
+    """
+
+    def estimate(self: PoseEstimator, frame: FrameInput) -> PoseEstimate:
+        result = function(frame, self.options)
+        if result is None:
+            return PoseEstimate.failure(f"{name} returned no estimate")
+        if isinstance(result, PoseEstimate):
+            return result
+        matrix = np.asarray(result, dtype=np.float64)
+        if matrix.shape != (4, 4):
+            raise TypeError(f"{name} returned an array of shape {matrix.shape}, not 4×4")
+        return PoseEstimate.from_matrix(matrix)
+
+    doc = summary or (function.__doc__ or f"Pose estimator {name}.").strip().splitlines()[0]
+    return type(f"FunctionEstimator_{name}", (PoseEstimator,),
+                {"name": name, "Options": options, "uses_truth": uses_truth,
+                 "requires": tuple(requires), "estimate": estimate, "__doc__": doc,
+                 "__module__": getattr(function, "__module__", __name__)})
