@@ -129,8 +129,8 @@ def _icp(mesh: _MeshIndex, model: TargetModelData, scan: np.ndarray,
     Returns
     -------
     pose, fitness, rms
-        The body → sensor transform (``None`` if too few points paired or the equations are
-        singular), the fraction of scan points paired in the last stage and their RMS
+        The body → sensor transform (``None`` if fewer than 6 points paired or the equations
+        cannot be solved), the fraction of scan points paired in the last stage and their RMS
         point-to-plane distance (m).
     """
     sensor_to_body = np.linalg.inv(body_in_sensor)
@@ -152,9 +152,12 @@ def _icp(mesh: _MeshIndex, model: TargetModelData, scan: np.ndarray,
                 w = np.clip(1 - (r / options.robust_kernel_m) ** 2, 0, None) ** 2
             centre = p.mean(axis=0)  # conditioning: turn about the points' centroid
             jac = np.hstack([np.cross(p - centre, n), n])
+            # least squares with minimum norm: a view of one flat face leaves the slide along
+            # it unconstrained, and that part of the step is then zero instead of arbitrary
             try:
-                x = np.linalg.solve((jac * w[:, None]).T @ jac, -(jac * w[:, None]).T @ r)
-            except np.linalg.LinAlgError:
+                x = np.linalg.lstsq((jac * w[:, None]).T @ jac, -(jac * w[:, None]).T @ r,
+                                    rcond=1e-12)[0]
+            except np.linalg.LinAlgError:  # non-finite input: give up on this start
                 return None, fitness, rms
             step = np.eye(4)
             step[:3, :3] = Rotation.from_rotvec(x[:3]).as_matrix()
@@ -187,7 +190,7 @@ def _refine(mesh: _MeshIndex, frame: FrameInput, initial: np.ndarray,
         return PoseEstimate.failure("non-finite initial pose"), np.inf
     pose, fitness, rms = _icp(mesh, frame.model, frame.xyz, initial, opts)
     if pose is None:
-        return PoseEstimate.failure(f"ICP failed: too few points paired or singular equations "
+        return PoseEstimate.failure(f"ICP failed: fewer than 6 points paired or no solution "
                                     f"(fitness {fitness:.2f})"), np.inf
     if fitness < opts.min_fitness:
         return PoseEstimate.failure(f"ICP fitness {fitness:.2f} < min_fitness "
