@@ -36,6 +36,7 @@ def _figures(records: dict[str, list[dict[str, Any]]]) -> dict[str, Any]:
 
     matplotlib.use("Agg", force=False)
     import matplotlib.pyplot as plt
+    import matplotlib.ticker
 
     figures = {}
     metrics = ("translation_error_m", "rotation_error_deg")
@@ -54,6 +55,7 @@ def _figures(records: dict[str, list[dict[str, Any]]]) -> dict[str, Any]:
         ax.grid(alpha=0.3)
         ax.set_ylim(bottom=0)
     axes[-1].set_xlabel("frame")
+    axes[-1].xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
     if not many and records:
         axes[0].legend(fontsize=8, loc="upper right")
     figures["errors_over_time.png"] = fig
