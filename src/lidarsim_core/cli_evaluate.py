@@ -44,8 +44,9 @@ def evaluate(dataset: Path = typer.Argument(..., help="Dataset directory made by
              target: Optional[str] = typer.Option(None, help="Target whose pose is estimated "
                                                   "(default: each sequence's first)."),
              symmetry: List[str] = typer.Option([], "--symmetry", help="A symmetry of the "
-                                                "target, AXIS:ORDER[@CX,CY,CZ] in its body "
-                                                "frame, e.g. z:4 or x:inf (repeatable)."),
+                                                "target in its body frame, AXIS:ORDER or "
+                                                "AXIS:ORDER@CX,CY,CZ, e.g. z:4, x:inf, "
+                                                "z:2@0.5,0,0 (repeatable)."),
              segment: bool = typer.Option(False, help="Give the estimator only the target's "
                                           "points (oracle segmentation by the true labels)."),
              seed: int = typer.Option(0, min=0, max=2 ** 31 - 1, help="Seed of randomised "
