@@ -185,7 +185,7 @@ def test_gt_noise_without_noise_scores_exactly_zero(dataset, tmp_path):
         assert float(row["range_m"]) == pytest.approx(math.hypot(20, 1 + 0.1 * float(
             row["time_s"])), abs=1e-9)
     summary = json.loads((tmp_path / "ev" / "summary.json").read_text())
-    assert summary["overall"]["success_rate"] == 1.0
+    assert summary["overall"]["success_rate"] == summary["overall"]["within_rate"] == 1.0
     assert summary["overall"]["translation_error_m"] == {"mean": 0.0, "median": 0.0, "p95": 0.0}
     assert summary["uses_truth"] is True
     assert [b["label"] for b in summary["range_bins"]] == ["20-50 m"]
@@ -204,11 +204,13 @@ def test_gt_noise_without_noise_scores_exactly_zero(dataset, tmp_path):
 
 
 def test_gt_noise_errors_follow_the_configured_noise(dataset, tmp_path):
-    evaluate_dataset(dataset, tmp_path / "ev", "gt_noise",
-                     {"translation_sigma_m": 0.01, "rotation_sigma_deg": 0.5})
+    result = evaluate_dataset(dataset, tmp_path / "ev", "gt_noise",
+                              {"translation_sigma_m": 0.01, "rotation_sigma_deg": 0.5},
+                              within=(0.001, 10.0))
     rows = _rows(tmp_path / "ev")
     t = np.array([float(r["translation_error_m"]) for r in rows])
     assert np.all(t > 0) and np.all(t < 0.06)  # |3-D Gaussian| of σ 1 cm: < 6 σ
+    assert result.summary["overall"]["within_rate"] == pytest.approx(np.mean(t <= 0.001))
 
 
 def test_segment_gives_only_the_targets_points(dataset, tmp_path):
@@ -292,6 +294,7 @@ def test_raising_and_nan_estimators_are_reported_per_frame(dataset, tmp_path, re
     assert result.failures == 2
     summary = json.loads((tmp_path / "r" / "summary.json").read_text())
     assert summary["overall"]["success_rate"] == pytest.approx(0.6)
+    assert summary["overall"]["within_rate"] == 0.0  # an estimate, but far from the truth
     evaluate_dataset(dataset, tmp_path / "n", "test-nan", registry=registry)
     rows = _rows(tmp_path / "n")
     assert [r["status"] for r in rows] == ["ok", "invalid", "invalid", "failed", "ok"]

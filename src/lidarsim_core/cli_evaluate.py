@@ -53,18 +53,20 @@ def evaluate(dataset: Path = typer.Argument(..., help="Dataset directory made by
                                       "estimators."),
              range_bins: str = typer.Option("0,10,20,50,100,200,500", help="Edges of the "
                                             "summary's range bins (m)."),
+             within: str = typer.Option("0.05,2", help="Thresholds 'METRES,DEGREES' of the "
+                                        "summary's within_rate."),
              quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar, no "
                                         "summary."),
              ) -> None:
     """Score a pose estimator on every frame of a dataset: estimates, metrics, summary, plots,
     HTML report."""
     run_guarded(lambda: _evaluate(dataset, estimator, out, option, split, target, symmetry,
-                                  segment, seed, range_bins, quiet))
+                                  segment, seed, range_bins, within, quiet))
 
 
 def _evaluate(dataset: Path, estimator: str, out: Path, option: list[str], split: str | None,
               target: str | None, symmetry: list[str], segment: bool, seed: int,
-              range_bins: str, quiet: bool) -> None:
+              range_bins: str, within: str, quiet: bool) -> None:
     from .errors import ConfigError
     from .evaluate import evaluate_dataset, parse_symmetry
 
@@ -80,16 +82,24 @@ def _evaluate(dataset: Path, estimator: str, out: Path, option: list[str], split
     except ValueError:
         raise ConfigError(f"'{range_bins}' is not a comma-separated list of numbers",
                           field="--range-bins") from None
+    try:
+        thresholds = tuple(float(v) for v in within.split(","))
+    except ValueError:
+        thresholds = ()
+    if len(thresholds) != 2:
+        raise ConfigError(f"'{within}' is not 'METRES,DEGREES'", field="--within")
     result = evaluate_dataset(dataset, out, estimator, parse_options(option), split=split,
                               target=target, symmetries=symmetries, segment=segment, seed=seed,
-                              range_bins_m=bins, quiet=quiet)
+                              range_bins_m=bins, within=thresholds,  # type: ignore[arg-type]
+                              quiet=quiet)
     if quiet:
         return
     overall = result.summary["overall"]
     t, r, s = (overall[m]["median"] for m in ("translation_error_m", "rotation_error_deg",
                                                "speed_score"))
     median = "no valid estimate" if t is None else \
-        f"median errors {t:.4g} m, {r:.4g}°, SPEED score {s:.4g}"
+        f"median errors {t:.4g} m, {r:.4g}°, SPEED score {s:.4g}; " \
+        f"{overall['within_rate'] * 100:.3g} % within {thresholds[0]:g} m and {thresholds[1]:g}°"
     _console().print(
         f"evaluate {estimator}: {result.frames_total} frames ({result.frames_evaluated} run, "
         f"{result.frames_skipped} already done), {overall['successes']} with an estimate; "

@@ -47,12 +47,16 @@ def _stats(values: list[float]) -> dict[str, float | None]:
             "p95": float(np.percentile(data, 95))}
 
 
-def group_summary(records: list[dict[str, Any]]) -> dict[str, Any]:
-    """Frames, successes, success rate, and mean/median/p95 of every metric (over the frames
-    with a valid estimate) and of the runtime (over every frame)."""
+def group_summary(records: list[dict[str, Any]], within: tuple[float, float]) -> dict[str, Any]:
+    """Frames, successes and their rate, the rate of frames within ``within`` (m, deg), and
+    mean/median/p95 of every metric (over the frames with a valid estimate) and of the runtime
+    (over every frame)."""
     ok = [r for r in records if r["status"] == "ok"]
+    good = [r for r in ok if r["metrics"]["translation_error_m"] <= within[0] and
+            r["metrics"]["rotation_error_deg"] <= within[1]]
     out: dict[str, Any] = {"frames": len(records), "successes": len(ok),
-                           "success_rate": len(ok) / len(records) if records else None}
+                           "success_rate": len(ok) / len(records) if records else None,
+                           "within_rate": len(good) / len(records) if records else None}
     out.update({m: _stats([r["metrics"][m] for r in ok]) for m in METRICS})
     out["runtime_s"] = _stats([r["runtime_s"] for r in records])
     return out
@@ -67,19 +71,20 @@ def summarise(config: dict[str, Any], records: dict[str, list[dict[str, Any]]],
               bins: list[float]) -> dict[str, Any]:
     """The content of ``summary.json``."""
     every = [r for rs in records.values() for r in rs]
+    within = tuple(config["within_m_deg"])
     edges = list(bins) + [math.inf]
     by_range = []
     for low, high in zip(edges, edges[1:]):
         inside = [r for r in every if low <= r["range_m"] < high]
         if inside:
             by_range.append({"range_m": [low, None if math.isinf(high) else high],
-                             "label": range_bin_label(low, high), **group_summary(inside)})
+                             "label": range_bin_label(low, high), **group_summary(inside, within)})
     return {"format": SUMMARY_FORMAT, "version": 1, "estimator": config["estimator"],
             "estimator_provider": config["estimator_provider"],
             "uses_truth": config["uses_truth"], "options": config["options"],
             "split": config["split"], "symmetries": config["symmetries"],
-            "overall": group_summary(every),
-            "sequences": {name: group_summary(rs) for name, rs in records.items()},
+            "within_m_deg": config["within_m_deg"], "overall": group_summary(every, within),
+            "sequences": {name: group_summary(rs, within) for name, rs in records.items()},
             "range_bins": by_range}
 
 

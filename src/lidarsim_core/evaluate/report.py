@@ -102,14 +102,19 @@ def _fmt(value: Any) -> str:
     return html.escape(str(value))
 
 
-def _stats_table(rows: list[tuple[str, dict[str, Any]]]) -> str:
-    head = ("<tr><th></th><th>frames</th><th>success</th>" +
+def _percent(value: float | None) -> str:
+    return "–" if value is None else f"{value * 100:.4g} %"
+
+
+def _stats_table(rows: list[tuple[str, dict[str, Any]]], within: list[float]) -> str:
+    head = (f"<tr><th></th><th>frames</th><th>estimates</th><th>within {within[0]:g} m and "
+            f"{within[1]:g}°</th>" +
             "".join(f"<th>{html.escape(m)}<br>mean / median / p95</th>"
                     for m in (*METRICS, "runtime_s")) + "</tr>")
     body = []
     for label, s in rows:
         cells = [f"<td>{html.escape(label)}</td><td>{s['frames']}</td>",
-                 f"<td>{_fmt(s['success_rate'] * 100 if s['success_rate'] is not None else None)} %</td>"]
+                 f"<td>{_percent(s['success_rate'])}</td><td>{_percent(s['within_rate'])}</td>"]
         for m in (*METRICS, "runtime_s"):
             st = s[m]
             cells.append(f"<td>{_fmt(st['mean'])} / {_fmt(st['median'])} / {_fmt(st['p95'])}</td>")
@@ -145,10 +150,12 @@ def _html(config: dict[str, Any], records: dict[str, list[dict[str, Any]]],
     parts.append("<table>" + "".join(f"<tr><td>{html.escape(k)}</td><td style='text-align:"
                                      f"left'>{_fmt(v)}</td></tr>" for k, v in setup.items())
                  + "</table>")
-    parts.append("<h2>Summary</h2>" + _stats_table([("all frames", summary["overall"])]))
-    parts.append("<h2>Per sequence</h2>" + _stats_table(list(summary["sequences"].items())))
+    within = config["within_m_deg"]
+    parts.append("<h2>Summary</h2>" + _stats_table([("all frames", summary["overall"])], within))
+    parts.append("<h2>Per sequence</h2>" + _stats_table(list(summary["sequences"].items()),
+                                                        within))
     parts.append("<h2>Per range bin</h2>" + _stats_table(
-        [(b["label"], b) for b in summary["range_bins"]]))
+        [(b["label"], b) for b in summary["range_bins"]], within))
     for name, caption in PLOTS.items():
         data = base64.b64encode(images[name]).decode("ascii")
         parts.append(f"<h3>{html.escape(caption)}</h3><img alt='{html.escape(caption)}' "

@@ -36,6 +36,8 @@ CONFIG_FILE = "evaluation.json"
 RECORDS_DIR = "frames"
 #: Default edges of the range bins of the summary (m); the last bin is open.
 DEFAULT_RANGE_BINS_M: tuple[float, ...] = (0.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0)
+#: Default thresholds of the summary's ``within_rate``: 5 cm and 2°.
+DEFAULT_WITHIN: tuple[float, float] = (0.05, 2.0)
 
 
 @dataclass
@@ -215,6 +217,7 @@ def evaluate_dataset(dataset: str | Path, out: str | Path, estimator: str,
                      target: str | None = None, symmetries: Iterable[Symmetry] = (),
                      segment: bool = False, seed: int = 0,
                      range_bins_m: Iterable[float] = DEFAULT_RANGE_BINS_M,
+                     within: tuple[float, float] = DEFAULT_WITHIN,
                      quiet: bool = True, registry: Any = None,
                      timer: Callable[[], float] = time.perf_counter) -> EvaluationResult:
     """Score estimator ``estimator`` on every frame of the dataset at ``dataset``.
@@ -241,6 +244,9 @@ def evaluate_dataset(dataset: str | Path, out: str | Path, estimator: str,
         Seed of estimators that draw random numbers (combined with sequence and frame).
     range_bins_m
         Edges of the summary's range bins (m), ascending; the last bin is open.
+    within
+        ``(metres, degrees)``: the summary's ``within_rate`` is the fraction of frames whose
+        estimate is within both (an estimate is not necessarily a right one).
     quiet
         No progress bar.
     registry
@@ -261,6 +267,9 @@ def evaluate_dataset(dataset: str | Path, out: str | Path, estimator: str,
     for module in ("matplotlib", *type(est).requires):  # before anything is written
         require(module, f"lidarsim evaluate --estimator {estimator}")
     bins = [float(b) for b in range_bins_m]
+    within = (float(within[0]), float(within[1]))
+    if not all(math.isfinite(v) and v > 0 for v in within):
+        raise ConfigError("the thresholds must be positive numbers", field="--within")
     if len(bins) < 1 or any(not math.isfinite(b) for b in bins) or \
             any(b >= c for b, c in zip(bins, bins[1:])):
         raise ConfigError("range bin edges must be finite and ascending", field="--range-bins")
@@ -274,6 +283,7 @@ def evaluate_dataset(dataset: str | Path, out: str | Path, estimator: str,
               "options": est.options.model_dump(mode="json"), "split": split, "target": target,
               "symmetries": [s.model_dump(mode="json") for s in symmetries],
               "segment": segment, "seed": seed, "range_bins_m": bins,
+              "within_m_deg": list(within),
               "lidarsim": __version__}
     from ..dataset.lock import remove_stale_parts
 
