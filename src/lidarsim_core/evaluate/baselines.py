@@ -163,8 +163,8 @@ def _icp(mesh: _MeshIndex, model: TargetModelData, scan: np.ndarray,
             step[:3, :3] = Rotation.from_rotvec(x[:3]).as_matrix()
             step[:3, 3] = centre - step[:3, :3] @ centre + x[3:]
             sensor_to_body = step @ sensor_to_body
-            if np.linalg.norm(x[:3]) < 1e-10 and np.linalg.norm(x[3:]) < 1e-10:
-                break
+            if np.linalg.norm(x[:3]) < 1e-8 and np.linalg.norm(x[3:]) < 1e-8:
+                break  # steps of 10 nrad and 10 nm: converged far below any sensor's noise
     return np.linalg.inv(sensor_to_body), fitness, rms
 
 
@@ -322,10 +322,10 @@ class FpfhRansacIcp(PoseEstimator):
         distance = opts.ransac_distance_voxels * voxel
         scan_features = _fpfh(o3d, scan_down, opts.feature_radius_voxels * voxel)
         seeds = _rng(frame, "ransac").integers(2 ** 31, size=opts.restarts)
-        best: np.ndarray | None = None
-        best_key = (np.inf, np.inf)
         sparse = np.asarray(scan_down.points)
+        quick = opts.model_copy(update={"max_iterations": min(opts.max_iterations, 30)})
         turns = _principal_turns(frame.model) if opts.try_turns else [np.eye(4)]
+        candidates: list[tuple[tuple[float, float], int, np.ndarray]] = []
         for seed in seeds:
             o3d.utility.random.seed(int(seed))
             ransac = reg.registration_ransac_based_on_feature_matching(
@@ -337,16 +337,23 @@ class FpfhRansacIcp(PoseEstimator):
             if ransac.fitness == 0:
                 continue
             hypothesis = np.linalg.inv(np.asarray(ransac.transformation))
-            for turn in turns:  # candidates are compared on the voxel-grid points (fast)
+            for turn in turns:  # ranked briefly on the voxel-grid points...
                 pose, fitness, rms = _icp(self._mesh, frame.model, sparse, hypothesis @ turn,
-                                          opts)
-                # the right attitude pairs the most points, then fits the surface best
-                score = (-round(fitness, 3), rms)
-                if pose is not None and score < best_key:
-                    best, best_key = pose, score
-        if best is None:
+                                          quick)
+                if pose is not None:
+                    candidates.append(((-round(fitness, 3), rms), len(candidates), pose))
+        if not candidates:
             return PoseEstimate.failure("RANSAC found no consistent match")
-        return _refine(self._mesh, frame, best, opts)[0]
+        best, best_key = None, (np.inf, np.inf)
+        for _, _, pose in sorted(candidates, key=lambda c: c[:2])[:4]:
+            # ...and the four best refined on every point: the right attitude pairs the most
+            # points, then fits the surface best
+            estimate, rms = _refine(self._mesh, frame, pose, opts)
+            score = (-round(estimate.fitness or 0.0, 3), rms)
+            if estimate.success and score < best_key:
+                best, best_key = estimate, score
+        return best if best is not None else PoseEstimate.failure(
+            "no candidate pose refined to min_fitness")
 
 
 class GtNoiseOptions(ComponentOptions):
