@@ -60,6 +60,7 @@ def _dataset(root: Path, scene: dict) -> Path:
     return root / "ds"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("noise, max_t_m, max_r_deg", [
     ("none", 0.005, 0.1), ("datasheet", 0.02, 0.5)])
 def test_icp_tracks_tumbling_envisat(tmp_path, noise, max_t_m, max_r_deg):
@@ -77,6 +78,7 @@ def test_icp_tracks_tumbling_envisat(tmp_path, noise, max_t_m, max_r_deg):
     assert config["options"]["initial_rotation_error_deg"] == 2.0
 
 
+@pytest.mark.slow
 def test_fpfh_ransac_icp_acquires_from_random_attitudes(tmp_path):
     """Ten static views of Envisat 18 m ahead at uniformly random attitudes, one frame each
     (sequences of a dataset file), with the datasheet's errors: no initial pose is given."""
