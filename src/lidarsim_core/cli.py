@@ -432,7 +432,7 @@ def schema_scenario() -> None:
 
 #: Modules that add further commands to :data:`app` when imported (one module per command group).
 COMMAND_MODULES: tuple[str, ...] = ("cli_patterns", "cli_motion", "cli_bench", "cli_report",
-                                     "cli_dataset", "cli_mesh", "cli_view")
+                                     "cli_dataset", "cli_mesh", "cli_view", "cli_evaluate")
 
 
 def _load_command_modules() -> None:

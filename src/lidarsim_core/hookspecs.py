@@ -7,8 +7,8 @@ provides. Registration must be cheap: register classes, never instances, and nev
 optional dependencies (embreex, pyvista, laspy, ...) while registering; import them inside the
 methods that need them.
 
-Plugin components (patterns, noise models, backends, exporters, target models, trajectories) are
-classes with
+Plugin components (patterns, noise models, backends, exporters, target models, trajectories,
+pose estimators) are classes with
 
 ``name: ClassVar[str]``
     the name users write in scenarios and on the command line (lower-case, ``[a-z0-9_-]+``);
@@ -130,4 +130,23 @@ def lidarsim_register_trajectories(register: Register) -> None:
         Call ``register(cls)`` with a subclass of
         :class:`lidarsim_core.trajectories.base.Trajectory`. Scenarios use them as
         ``trajectory: {kind: NAME, ...options}``.
+    """
+
+
+@hookspec
+def lidarsim_register_pose_estimators(register: Register) -> None:
+    """Register pose estimators, scored by ``lidarsim evaluate`` (docs/evaluate.md).
+
+    Parameters
+    ----------
+    register
+        Call ``register(cls)`` with a subclass of
+        :class:`lidarsim_core.evaluate.base.PoseEstimator`. Its ``estimate(frame)`` gets one
+        frame's points (sensor frame, per-point timestamps, the whole point record), the
+        target's mesh in its body frame and the previous frame's estimate (``None`` on the
+        first frame) as a :class:`~lidarsim_core.evaluate.base.FrameInput`, and returns the
+        target's pose in the sensor frame as a
+        :class:`~lidarsim_core.evaluate.base.PoseEstimate` (optionally with a fitness and a
+        covariance) or :meth:`~lidarsim_core.evaluate.base.PoseEstimate.failure`. The harness
+        times each call. ``lidarsim evaluate --estimator NAME`` uses ``cls.name``.
     """

@@ -42,6 +42,7 @@ BUILTIN_PROVIDER = f"lidarsim-core {__version__} (built-in)"
 BUILTIN_PACKAGES: tuple[str, ...] = (
     "lidarsim_core.patterns", "lidarsim_core.noise", "lidarsim_core.backends",
     "lidarsim_core.io", "lidarsim_core.models", "lidarsim_core.trajectories",
+    "lidarsim_core.evaluate",
 )
 
 

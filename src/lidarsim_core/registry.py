@@ -23,6 +23,7 @@ KINDS: dict[str, str] = {
     "exporter": "lidarsim_register_exporters",
     "target_model": "lidarsim_register_target_models",
     "trajectory": "lidarsim_register_trajectories",
+    "pose_estimator": "lidarsim_register_pose_estimators",
 }
 
 _NAME_RE = re.compile(r"^[a-z0-9][a-z0-9_.-]*$")
