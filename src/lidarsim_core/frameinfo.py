@@ -2,10 +2,10 @@
 
 A frame's metadata holds the sensor's and every target's pose at its start and end, from the
 trajectories' SciPy path (``poses_at``), so that the ground truth does not depend on the
-compiled kernels. Looked up one frame at a time, a frame costs ~2 ms of SciPy call overhead
-(two ``poses_at`` per trajectory, a dozen one-row rotations), which was a fifth of a serial
-``lidarsim dataset`` run on short frames (the poses file asks for every frame before the first
-is simulated). Here every trajectory is evaluated once over the start and end times of all the
+compiled kernels. Looked up one frame at a time, a frame's metadata and poses-file record cost
+~1.2 ms of SciPy call overhead (a ``poses_at`` per trajectory, a dozen one-row rotations), about
+a fifth of a serial ``lidarsim dataset`` run on short frames (the poses file asks for every
+frame before the first is simulated). Here every trajectory is evaluated once over the start and end times of all the
 frames asked for, and the records are made from those arrays: each row's arithmetic is the
 one-frame arithmetic (SciPy's rotations and NumPy's functions work row by row), so the
 metadata, and every file written from it, is the same to the bit (``tests/test_frameinfo.py``).
