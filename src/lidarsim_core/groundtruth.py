@@ -173,7 +173,7 @@ def ground_truth(infos: Sequence["FrameInfo"], clouds: Sequence[str | None] | No
     return {"format": FORMAT_NAME, "version": FORMAT_VERSION, "convention": CONVENTION,
             "sensor": first.sensor, "seed": first.seed, "config_hash": first.config_hash,
             "motion": first.motion, "target_names": list(first.target_names),
-            "frames": [frame_record(info, c) for info, c in zip(infos, clouds)]}
+            "frames": frame_records(infos, clouds)}
 
 
 def _csv_columns() -> list[str]:
@@ -266,4 +266,4 @@ def sequence_frame_infos(scenario: "Scenario | Simulation",
 
     sim = scenario if isinstance(scenario, Simulation) else Simulation(scenario)
     indices = range(sim.scenario.scan.frames) if frames is None else frames
-    return [sim.frame_info(f) for f in indices]
+    return sim.frame_infos(indices)
