@@ -12,6 +12,7 @@ from lidarsim_core.bench_suite import SUITE
 from lidarsim_core.groundtruth import frame_record, frame_records
 from lidarsim_core.pipeline import Simulation
 from lidarsim_core.scenario import scenario_from_dict
+from test_posing import TRAJECTORIES, _trajectory
 
 
 def _one_frame(sim: Simulation, frame: int) -> dict:
@@ -85,3 +86,16 @@ def test_poses_file_is_the_frame_by_frame_file(tmp_path, monkeypatch) -> None:
         made.save(tmp_path / "poses.json")
     assert (tmp_path / "poses.json").read_text(encoding="utf-8") == text
     assert len(json.loads(text)["frames"]) == 9
+
+
+@pytest.mark.parametrize("name", sorted(TRAJECTORIES))
+def test_every_trajectory_gives_each_time_the_bits_it_gives_alone(name: str) -> None:
+    """What frame_infos relies on: a built-in trajectory's poses at many times are, row by row,
+    its poses at two times (keyframe SLERP and splines, closed forms, HCW, look-at)."""
+    trajectory = _trajectory(*TRAJECTORIES[name])
+    times = np.concatenate([np.linspace(-0.5, 2.5, 61), [0.4, 0.4 + 5e-7]])
+    many = trajectory.poses_at(times)
+    for i in range(0, len(times) - 1, 2):
+        two = trajectory.poses_at(times[i:i + 2])
+        assert many.position[i:i + 2].tobytes() == two.position.tobytes()
+        assert many.rotation.as_quat()[i:i + 2].tobytes() == two.rotation.as_quat().tobytes()
