@@ -99,3 +99,33 @@ def test_every_trajectory_gives_each_time_the_bits_it_gives_alone(name: str) -> 
         two = trajectory.poses_at(times[i:i + 2])
         assert many.position[i:i + 2].tobytes() == two.position.tobytes()
         assert many.rotation.as_quat()[i:i + 2].tobytes() == two.rotation.as_quat().tobytes()
+
+
+def test_dataset_frames_take_their_metadata_from_a_block(tmp_path, monkeypatch) -> None:
+    """A dataset's frame jobs compute their metadata a block ahead; each frame still gets
+    exactly its own metadata, once, and frames asked out of order or twice are right too."""
+    from lidarsim_core.dataset import frames as frames_module
+    from lidarsim_core.dataset.frames import FrameJob, simulate_frame_job
+
+    monkeypatch.setattr(frames_module, "INFO_BLOCK", 4)
+    monkeypatch.setattr(frames_module, "_infos", type(frames_module._infos)())
+    sim = _sequence("tumbling-rose", 10)
+    scenario_json = sim.scenario.model_dump_json()
+    calls = []
+    real = Simulation.frame_infos
+
+    def counted(self, frames):
+        if self is not sim:  # the jobs' own simulation
+            calls.append(list(frames))
+        return real(self, frames)
+
+    monkeypatch.setattr(Simulation, "frame_infos", counted)
+    order = [0, 1, 2, 3, 4, 9, 5, 5, 7]
+    for frame in order:
+        job = FrameJob("s", frame, str(tmp_path / f"{frame}.ply"), scenario_json, None, "ply")
+        spool, info = simulate_frame_job(job)
+        spool.close()
+        assert info.to_dict() == sim.frame_info(frame).to_dict()
+    # the jobs' simulation (not ``sim``): blocks of 4 up to the last frame; the second 5 is
+    # computed again, and 7 comes from the newer block
+    assert calls == [[0, 1, 2, 3], [4, 5, 6, 7], [9], [5, 6, 7, 8]]
