@@ -176,7 +176,7 @@ def cast_rays(sim: Any, frame: int = 0) -> list[tuple[Any, np.ndarray, np.ndarra
     k0, k1 = sim.frame_rays(frame)
     batch = sim.pattern.rays_for_indices(np.arange(k0, k1, dtype=np.int64))
     t_frame = sim.scenario.scan.frame_interval(frame)[0]
-    _, _, bodies = sim._pulse_frames(batch, sim._noise_contexts(frame), t_frame)
+    _, _, bodies, _ = sim._pulse_frames(batch, sim._noise_contexts(frame), t_frame)
     out = []
     for target, (origin, vecs) in zip(sim.targets, bodies):
         if sim.sub_rays is None:
@@ -212,7 +212,7 @@ def suite_stages(sim: Any, frame: int = 0, rounds: int = 3) -> dict[str, Any]:
     batch = sim.pattern.rays_for_indices(index)
     posed = with_piece_poses(sim, batch, t_frame)
     kept = posed if sim.culler is None else posed.take(sim.culler.keep(sim, posed, t_frame))
-    _, _, bodies = sim._pulse_frames(kept, contexts, t_frame)
+    _, _, bodies, _ = sim._pulse_frames(kept, contexts, t_frame)
     rays = []
     for target, (origin, vecs) in zip(sim.targets, bodies):
         d = vecs[0] if sim.sub_rays is None else sim.sub_rays.directions(*vecs)

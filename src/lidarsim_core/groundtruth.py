@@ -93,6 +93,62 @@ def frame_record(info: "FrameInfo", cloud: str | None = None) -> dict[str, Any]:
     return out
 
 
+def frame_records(infos: Sequence["FrameInfo"], clouds: Sequence[str | None]
+                  ) -> list[dict[str, Any]]:
+    """:func:`frame_record` of many frames, each rotation operation done once over all of them
+    (the same bits: SciPy's rotations work row by row); frames with different targets are
+    done one at a time."""
+    if len({tuple(i.target_names) for i in infos}) > 1:
+        return [frame_record(i, c) for i, c in zip(infos, clouds)]
+    if not infos:
+        return []
+    from .frameinfo import relative_rows
+
+    def stacked(records: list[dict[str, list[float]]]) -> Poses:
+        return Poses(np.array([r["translation_m"] for r in records], dtype=np.float64),
+                     Rotation.from_quat(np.array([r["quaternion_xyzw"] for r in records])))
+
+    def canonical(quats: np.ndarray) -> list[list[float]]:
+        # the sign of a quaternion is free: write the one with w >= 0
+        return (Rotation.from_quat(quats).as_quat(canonical=True) + 0.0).tolist()
+
+    def pairs(records: list[dict[str, list[float]]], quats: list[list[float]], what: str,
+              end: bool) -> list[dict[str, list[float]]]:
+        suffix = "_end" if end else ""
+        return [{f"q_{what}{suffix}": q, f"r_{what}{suffix}_m": list(r["translation_m"])}
+                for r, q in zip(records, quats)]
+
+    def quats_of(records: list[dict[str, list[float]]]) -> list[list[float]]:
+        return canonical(np.array([r["quaternion_xyzw"] for r in records]))
+
+    out: list[dict[str, Any]] = [{"frame": i.frame, "t_start_s": i.t_start,
+                                  "t_end_s": i.t_end, "cloud": c}
+                                 for i, c in zip(infos, clouds)]
+    sensors = []
+    for end, key in ((False, "sensor_pose_start"), (True, "sensor_pose_end")):
+        records = [getattr(i, key) for i in infos]
+        for row, pair in zip(out, pairs(records, quats_of(records), "sensor_in_scene", end)):
+            row.update(pair)
+        sensors.append(stacked(records))
+    targets: list[list[dict[str, Any]]] = [[] for _ in infos]
+    for j, name in enumerate(infos[0].target_names):
+        recs: list[dict[str, Any]] = [{"name": name} for _ in infos]
+        for end, key in ((False, "target_poses_start"), (True, "target_poses_end")):
+            scene = [getattr(i, key)[j] for i in infos]
+            # recomputed from the scene poses so files from older metadata are complete too
+            in_sensor = relative_rows(stacked(scene), sensors[int(end)]).to_records()
+            for rec, a, b in zip(recs, pairs(in_sensor, quats_of(in_sensor),
+                                             "target_in_sensor", end),
+                                 pairs(scene, quats_of(scene), "target_in_scene", end)):
+                rec.update(a)
+                rec.update(b)
+        for row, rec in zip(targets, recs):
+            row.append(rec)
+    for row, recs in zip(out, targets):
+        row["targets"] = recs
+    return out
+
+
 def _poses(record: dict[str, list[float]]) -> Poses:
     return Poses(np.asarray(record["translation_m"], dtype=np.float64).reshape(1, 3),
                  Rotation.from_quat(np.asarray(record["quaternion_xyzw"]).reshape(1, 4)))
@@ -117,7 +173,7 @@ def ground_truth(infos: Sequence["FrameInfo"], clouds: Sequence[str | None] | No
     return {"format": FORMAT_NAME, "version": FORMAT_VERSION, "convention": CONVENTION,
             "sensor": first.sensor, "seed": first.seed, "config_hash": first.config_hash,
             "motion": first.motion, "target_names": list(first.target_names),
-            "frames": [frame_record(info, c) for info, c in zip(infos, clouds)]}
+            "frames": frame_records(infos, clouds)}
 
 
 def _csv_columns() -> list[str]:
@@ -210,4 +266,4 @@ def sequence_frame_infos(scenario: "Scenario | Simulation",
 
     sim = scenario if isinstance(scenario, Simulation) else Simulation(scenario)
     indices = range(sim.scenario.scan.frames) if frames is None else frames
-    return [sim.frame_info(f) for f in indices]
+    return sim.frame_infos(indices)

@@ -35,11 +35,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any, Iterator, Sequence
 
 import numpy as np
 
-from ._version import __version__
 from .backends.base import RayBackend
 from .beam import SubRays, sub_rays_for
 from .builtin_sensors import get_sensor
@@ -403,24 +402,14 @@ class Simulation:
 
     def frame_info(self, frame: int) -> FrameInfo:
         """Metadata of ``frame``: timing, poses at start and end, provenance."""
-        t0, t1 = self.scenario.scan.frame_interval(frame)
-        k0, k1 = self.frame_rays(frame)
-        times = np.array([t0, t1])
-        sensor = self.sensor_trajectory.poses_at(times)
-        targets = [t.trajectory.poses_at(times) for t in self.targets]
-        return FrameInfo(
-            frame=frame, t_start=t0, t_end=t1, sensor=self.sensor.name,
-            seed=self.scenario.seed, config_hash=self.scenario.config_hash(),
-            backend=self.backend.name, noise=[m.name for m in self.noise],
-            motion=self.scenario.scan.motion, target_names=[t.name for t in self.targets],
-            part_names=self.part_names, rays_emitted=k1 - k0,
-            sensor_pose_start=sensor[0].to_records()[0],
-            sensor_pose_end=sensor[1].to_records()[0],
-            target_poses_start=[p[0].to_records()[0] for p in targets],
-            target_poses_end=[p[1].to_records()[0] for p in targets],
-            targets_in_sensor=[p[0].relative_to(sensor[0]).to_records()[0] for p in targets],
-            targets_in_sensor_end=[p[1].relative_to(sensor[1]).to_records()[0] for p in targets],
-            software=f"lidarsim-core {__version__}", extra=self.measurement_info())
+        return self.frame_infos([frame])[0]
+
+    def frame_infos(self, frames: Sequence[int]) -> list[FrameInfo]:
+        """:meth:`frame_info` of each of ``frames``, every trajectory evaluated once for all
+        (:mod:`lidarsim_core.frameinfo`; the same bits as one frame at a time)."""
+        from .frameinfo import frame_infos
+
+        return frame_infos(self, frames)
 
     def measurement_info(self) -> dict[str, Any]:
         """The measurement model beyond the seed paper's, for frame metadata (empty when

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import hashlib
 import os
+import threading
 from collections import OrderedDict
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,6 +24,12 @@ CACHE_SIZE = 4
 
 _simulations: "OrderedDict[str, Any]" = OrderedDict()
 _stats = {"simulations_built": 0, "frames": 0}
+#: Frames whose metadata are computed together, ahead of their simulation: the trajectories
+#: are evaluated once per block (:meth:`~lidarsim_core.pipeline.Simulation.frame_infos`, the
+#: same bits as one frame at a time). Each is handed out once, to its frame's job.
+INFO_BLOCK = 64
+_infos: "OrderedDict[tuple[str, int], Any]" = OrderedDict()
+_infos_lock = threading.Lock()
 
 
 @dataclass(frozen=True)
@@ -84,11 +91,28 @@ def _simulation(job: FrameJob) -> Any:
     return sim
 
 
+def _frame_info(job: FrameJob, sim: Any) -> Any:
+    """``sim.frame_info(job.frame)``, from a block of frames computed ahead when it is there."""
+    key = (job.cache_key, job.frame)
+    with _infos_lock:
+        info = _infos.pop(key, None)
+    if info is not None:
+        return info
+    last = max(job.frame + 1, min(sim.scenario.scan.frames, job.frame + INFO_BLOCK))
+    infos = sim.frame_infos(range(job.frame, last))
+    with _infos_lock:
+        for later in infos[1:]:
+            _infos[(job.cache_key, later.frame)] = later
+        while len(_infos) > 4 * INFO_BLOCK:  # frames other workers made, or never asked for
+            _infos.popitem(last=False)
+    return infos[0]
+
+
 def simulate_frame_job(job: FrameJob) -> tuple[PointSpool, Any]:
     """Simulate ``job.frame`` into a :class:`~lidarsim_core.io.points.PointSpool` (the caller
     closes it, usually through :func:`write_frame_job`); returns it and the frame's info."""
     sim = _simulation(job)
-    info = sim.frame_info(job.frame)
+    info = _frame_info(job, sim)
     spool = PointSpool(info, memory_limit=job.spool_memory)
     try:
         spool.extend(sim.iter_chunks(job.frame))
