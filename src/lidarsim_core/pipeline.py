@@ -38,6 +38,7 @@ from ._version import __version__
 from .backends.base import RayBackend
 from .beam import SubRays, sub_rays_for
 from .builtin_sensors import get_sensor
+from .limits import check_simulation
 from .chunks import ordered_map, piece_size, rotate, split_range, to_body, worker_threads
 from .config_io import validate_model
 from .cull import PulseCuller
@@ -150,6 +151,7 @@ class Simulation:
             offset += len(mesh.part_names)
         self.part_names = [f"{t.name}/{p}" for t in self.targets for p in t.mesh.part_names]
         self._setup_measurement(scenario)
+        check_simulation(self)  # the resource budget, before any ray is generated
         #: Plan for skipping pulses that cannot reach a target (None: every pulse is cast).
         self.culler: PulseCuller | None = PulseCuller.for_simulation(self)
         # third-party components that fail mid-run are reported with their name
