@@ -52,12 +52,43 @@ def _console(stderr: bool = False):
 
 
 def _fail(message: str, code: int) -> None:
-    _console(stderr=True).print(f"[bold red]error:[/] {message}", soft_wrap=True)
+    from rich.text import Text
+
+    # a Text is never parsed for markup: file names, keys and values are printed verbatim
+    _console(stderr=True).print(Text.assemble(("error:", "bold red"), " ", message),
+                                soft_wrap=True)
     raise typer.Exit(code)
 
 
 def _one_line(exc: BaseException) -> str:
     return " ".join(str(exc).split())
+
+
+def check_seed_option(seed: int | None, flag: str = "--seed") -> None:
+    """Refuse a seed option outside 0 to 2^64 - 1 (a larger one would alias a smaller)."""
+    from .errors import ConfigError
+    from .limits import MAX_SEED
+
+    if seed is not None and not 0 <= seed <= MAX_SEED:
+        raise ConfigError(f"{flag} {seed} is outside 0..{MAX_SEED} (2^64 - 1)", field=flag)
+
+
+def check_number_option(value: float | None, flag: str, *, minimum: float | None = None,
+                        positive: bool = False) -> None:
+    """Refuse a number option that is NaN or infinite, not > 0 (``positive``) or below
+    ``minimum``: options are checked at the edge like configuration fields."""
+    import math
+
+    from .errors import ConfigError
+
+    if value is None:
+        return
+    if not math.isfinite(value):
+        raise ConfigError(f"{flag} must be a finite number, got {value}", field=flag)
+    if positive and not value > 0:
+        raise ConfigError(f"{flag} must be > 0, got {value:g}", field=flag)
+    if minimum is not None and value < minimum:
+        raise ConfigError(f"{flag} must be >= {minimum:g}, got {value:g}", field=flag)
 
 
 def run_guarded(func: Callable[[], Any]) -> Any:
@@ -68,11 +99,13 @@ def run_guarded(func: Callable[[], Any]) -> Any:
     any other failure, 130 after Ctrl-C (SIGINT), 143 after SIGTERM.
     """
     from .errors import PluginError
-    from .guard import SIGTERM_EXIT_CODE, Terminated, interrupt_behind
+    from .guard import (SIGTERM_EXIT_CODE, Terminated, interrupt_behind, os_error_line,
+                        quiet_numerics)
 
     try:
         try:
-            return func()
+            with quiet_numerics():
+                return func()
         except Exception as exc:  # an interrupt surfacing through a compiled kernel
             interrupt = interrupt_behind(exc)
             if interrupt is None:
@@ -88,6 +121,10 @@ def run_guarded(func: Callable[[], Any]) -> Any:
         if _state["debug"]:
             raise
         _fail(_one_line(exc), 1)
+    except OSError as exc:  # a path the user gave cannot be read or written (ENOSPC, EROFS...)
+        if _state["debug"]:
+            raise
+        _fail(_one_line(os_error_line(exc)), 2)
     except Terminated:
         _fail("terminated (SIGTERM); no partial output was kept", SIGTERM_EXIT_CODE)
     except KeyboardInterrupt:
@@ -118,6 +155,8 @@ def _demo(out: Path, duration: float, backend: str, detail: str, seed: int) -> N
     from .errors import OutputError
     from .pipeline import Simulation
 
+    check_number_option(duration, "--duration", positive=True)
+    check_seed_option(seed)
     if out.exists() and not out.is_dir():
         raise OutputError("--out must be a directory", source=out)
     out.mkdir(parents=True, exist_ok=True)
@@ -147,6 +186,7 @@ def _demo(out: Path, duration: float, backend: str, detail: str, seed: int) -> N
 
 
 def _print_demo_summary(out: Path, results: dict[str, Any], wall: float) -> None:
+    from rich.markup import escape
     from rich.table import Table
 
     noisy = results["with_errors"][0]
@@ -178,7 +218,8 @@ def _print_demo_summary(out: Path, results: dict[str, Any], wall: float) -> None
         parts.add_row(name, f"{count:,}")
     console.print(parts)
     files = sorted(p.name for p in out.iterdir() if not p.name.startswith("."))
-    console.print(f"wrote {len(files)} files to {out}/: {', '.join(files)}")
+    console.print(f"wrote {len(files)} files to {escape(str(out))}/: "
+                  f"{escape(', '.join(files))}")
     console.print(f"total wall time {wall:.2f} s")
 
 
@@ -201,15 +242,17 @@ def simulate(scenario: Path = typer.Argument(..., help="Scenario file (YAML, TOM
 
 def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwrite: bool,
               backend: str | None, seed: int | None) -> None:
-    import os
+    from rich.markup import escape
 
     from .errors import ConfigError, OutputError
+    from .guard import check_output_path
     from .io.base import exporter_for, write_points_file
     from .io.paths import frame_paths, has_frame_field
     from .io.points import PointSpool
     from .scenario import load_scenario
     from .pipeline import Simulation
 
+    check_seed_option(seed)
     scenario = load_scenario(path)
     changes: dict[str, Any] = {}
     if backend is not None:
@@ -229,16 +272,8 @@ def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwri
                           "(e.g. cloud_{frame:04d}.ply) or choose one with --frame", source=out)
     targets = frame_paths(out, frames) if templated else [out]
     exporter = exporter_for(targets[0], fmt)  # unknown format: fail before simulating
-    for target in targets:
-        if target.is_dir():
-            raise OutputError("output path is a directory", source=target)
-        if target.exists() and not overwrite:
-            raise OutputError("output file exists (use --overwrite to replace it)", source=target)
-        parent = target.parent if str(target.parent) else Path(".")
-        if not parent.is_dir():
-            raise OutputError(f"output directory does not exist: {parent}", source=target)
-        if not os.access(parent, os.W_OK | os.X_OK):
-            raise OutputError(f"output directory is not writable: {parent}", source=target)
+    for target in targets:  # every output refused before simulating, not after
+        check_output_path(target, overwrite=overwrite)
     sim = Simulation(scenario)  # guards third-party components itself
     console = _console()
     for f, target in zip(frames, targets):
@@ -250,7 +285,7 @@ def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwri
             write_points_file(spool, target, exporter=exporter, overwrite=overwrite)
             points = len(spool)
         console.print(f"frame {f}: {points:,} points from {info.rays_emitted:,} rays "
-                      f"in {time.perf_counter() - t0:.2f} s → {target}")
+                      f"in {time.perf_counter() - t0:.2f} s → {escape(str(target))}")
         if points == 0:
             console.print(f"note: frame {f} is empty: no point was detected within "
                           f"{sim.sensor.range_min_m:g}–{sim.sensor.range_max_m:g} m (targets "
@@ -349,12 +384,41 @@ def _load_command_modules() -> None:
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Console-script entry point."""
+    """Console-script entry point; exits the process with the command's status."""
+    sys.exit(_run_app(argv))
+
+
+def _run_app(argv: list[str] | None) -> int:
     from .guard import sigterm_as_interrupt
+
+    try:  # Typer >= 0.26 carries its own copy of Click
+        from typer._click.exceptions import NoArgsIsHelpError, UsageError
+    except ImportError:  # pragma: no cover - older Typer on Click
+        from click.exceptions import NoArgsIsHelpError, UsageError  # type: ignore[no-redef]
 
     _load_command_modules()
     with sigterm_as_interrupt():
-        app(args=argv, prog_name="lidarsim")
+        try:
+            # not standalone: a usage error (bad option value, unknown option) comes back here
+            # and is printed as one line, like every other mistake
+            code = app(args=argv, prog_name="lidarsim", standalone_mode=False)
+        except NoArgsIsHelpError as exc:
+            exc.show()
+            return exc.exit_code
+        except UsageError as exc:
+            command = exc.ctx.command_path if exc.ctx is not None else "lidarsim"
+            return _fail_code(f"{command}: {_one_line(exc.format_message())}", 2)
+        except typer.Abort:
+            return _fail_code("interrupted; no partial output was kept", 130)
+    return code if isinstance(code, int) else 0
+
+
+def _fail_code(message: str, code: int) -> int:
+    try:
+        _fail(message, code)
+    except typer.Exit as stop:
+        return stop.exit_code
+    return code
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -35,6 +35,8 @@ def _poses(path: Path, out: Path, clouds: str | None, frame: int | None,
            overwrite: bool) -> None:
     from .errors import ConfigError, OutputError
     from .groundtruth import sequence_frame_infos, write_ground_truth
+    from .guard import check_output_path
+    from .io.paths import frame_paths
     from .scenario import load_scenario
 
     scenario = load_scenario(path)
@@ -45,11 +47,11 @@ def _poses(path: Path, out: Path, clouds: str | None, frame: int | None,
     if clouds is not None and n_frames > 1 and frame is None and "{frame" not in clouds:
         raise OutputError("--clouds needs '{frame}' in it for a sequence "
                           "(e.g. cloud_{frame:04d}.ply)", source=clouds)
-    if out.exists() and not overwrite:
-        raise OutputError("output file exists (use --overwrite to replace it)", source=out)
+    check_output_path(out, overwrite=overwrite, what="pose file")
     indices = [frame] if frame is not None else list(range(n_frames))
+    # the same template rules as --out: only {frame}, with a zero-padded width
+    names = [str(p) for p in frame_paths(clouds, indices)] if clouds is not None else None
     infos = sequence_frame_infos(scenario, indices)
-    names = [clouds.format(frame=f) for f in indices] if clouds is not None else None
     write_ground_truth(out, infos, clouds=names, overwrite=overwrite)
     typer.echo(f"wrote poses of {len(infos)} frame(s) and {len(infos[0].target_names)} "
                f"target(s) to {out}")

@@ -158,14 +158,7 @@ def parse_config_text(text: str, suffix: str, *, source: str | Path = "<string>"
             try:
                 data = yaml.load(text, Loader=_safe_loader())  # a SafeLoader: plain data only
             except yaml.YAMLError as exc:
-                mark = getattr(exc, "problem_mark", None)
-                where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-                problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-                if problem.startswith("could not determine a constructor for the tag"):
-                    tag = problem.rsplit(" ", 1)[-1]
-                    raise ConfigError(f"YAML tag {tag}{where} is not allowed: configuration "
-                                      "files hold plain data only", source=source) from None
-                raise ConfigError(f"malformed YAML{where}: {problem}", source=source) from None
+                raise _yaml_error(exc, source=source) from None
         elif suffix == ".toml":
             data = tomllib.loads(text)
         else:
@@ -183,6 +176,33 @@ def parse_config_text(text: str, suffix: str, *, source: str | Path = "<string>"
         raise ConfigError(f"top level must be a mapping, not {type(data).__name__}", source=source)
     _check_expanded_size(data, source)
     return data
+
+
+def _yaml_error(exc: Exception, *, source: str | Path | None, field: str | None = None
+                ) -> ConfigError:
+    mark = getattr(exc, "problem_mark", None)
+    where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+    problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+    if problem.startswith("could not determine a constructor for the tag"):
+        tag = problem.rsplit(" ", 1)[-1]
+        return ConfigError(f"YAML tag {tag}{where} is not allowed: configuration files hold "
+                           "plain data only", source=source, field=field)
+    return ConfigError(f"malformed YAML{where}: {problem}", source=source, field=field)
+
+
+def parse_option_value(text: str, *, field: str) -> Any:
+    """A ``KEY=VALUE`` command-line value read as YAML with the same safe loader as files
+    (plain data only; malformed values and tags are one line naming ``field``)."""
+    import yaml
+
+    try:
+        value = yaml.load(text, Loader=_safe_loader())
+    except yaml.YAMLError as exc:
+        raise _yaml_error(exc, source=None, field=field) from None
+    except RecursionError:
+        raise ConfigError("value is nested too deeply", field=field) from None
+    _check_expanded_size({"value": value}, field)
+    return value
 
 
 #: Most values (scalars, lists and mappings, counted as often as YAML aliases repeat them) a

@@ -18,6 +18,7 @@ import functools
 import signal
 import threading
 from contextlib import contextmanager
+from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterator
 
 if TYPE_CHECKING:
@@ -202,3 +203,88 @@ def check_sensor_outside(sim: "Simulation", frame: int) -> None:
                     f"the sensor is inside the closed target '{target.name}' at t = {t:g} s "
                     "(every probe ray meets the inner side of its surface); move the sensor "
                     "or the target", source=scenario.source, field=field)
+
+
+# ---- the error boundary: output paths, OS errors, numerical warnings ------------------------
+#: Characters an atomic write adds to a file name for its temporary file (``.NAME.RANDOM.part``)
+#: and a sidecar adds (``NAME.json``): the longest name lidarsim creates from an output name.
+_NAME_OVERHEAD = len(".") + 12 + len("..part") + len(".json")
+
+
+def describe_os_error(exc: OSError) -> str:
+    """The reason of an OS error in words ("no space left on the device", ...)."""
+    from .config_io import _describe
+
+    return _describe(exc)
+
+
+def os_error_line(exc: OSError) -> str:
+    """One line for an OS error: the path (both, for a rename) and the reason."""
+    paths = [str(p) for p in (exc.filename, exc.filename2) if p is not None]
+    reason = describe_os_error(exc)
+    return f"{' → '.join(paths)}: {reason}" if paths else reason
+
+
+def check_output_path(path: str | Path, *, overwrite: bool, what: str = "output file") -> None:
+    """Refuse an output path before any work is done, with the reason the write would fail.
+
+    Checks: the path is not a directory; an existing file, or a symbolic link (even a
+    dangling or looping one), is replaced only with ``overwrite``; the directory exists, is
+    writable and not on a read-only file system; the name (with the temporary and sidecar
+    names lidarsim derives from it) fits the file system's name length.
+
+    Raises
+    ------
+    OutputError
+        Naming ``path``.
+    """
+    import os
+
+    from .errors import OutputError
+
+    target = Path(path)
+    parent = target.parent if str(target.parent) else Path(".")
+    try:
+        name_max = os.pathconf(parent, "PC_NAME_MAX") if parent.is_dir() else 255
+    except (OSError, ValueError):
+        name_max = 255
+    if len(os.fsencode(target.name)) + _NAME_OVERHEAD > name_max:
+        raise OutputError(f"file name too long: {len(os.fsencode(target.name))} bytes, and "
+                          f"this file system allows {name_max - _NAME_OVERHEAD} for an "
+                          f"{what} (with its temporary and sidecar names)", source=target)
+    try:
+        if target.is_dir():
+            raise OutputError("output path is a directory", source=target)
+    except OSError as exc:  # ELOOP, ENAMETOOLONG in a parent, ...
+        raise OutputError(f"cannot use this path: {describe_os_error(exc)}",
+                          source=target) from None
+    if os.path.islink(target) and not overwrite:
+        raise OutputError("output path is a symbolic link (use --overwrite to replace it)",
+                          source=target)
+    if os.path.lexists(target) and not overwrite:
+        raise OutputError(f"{what} exists (use --overwrite to replace it)", source=target)
+    if not parent.is_dir():
+        raise OutputError(f"output directory does not exist: {parent}", source=target)
+    try:
+        read_only = bool(os.statvfs(parent).f_flag & os.ST_RDONLY)
+    except (OSError, AttributeError):
+        read_only = False
+    if read_only:
+        raise OutputError(f"output directory is on a read-only file system: {parent}",
+                          source=target)
+    if not os.access(parent, os.W_OK | os.X_OK):
+        raise OutputError(f"output directory is not writable: {parent}", source=target)
+
+
+@contextmanager
+def quiet_numerics() -> Iterator[None]:
+    """While the block runs, NumPy floating-point warnings (overflow, invalid values) are not
+    printed: inputs that would cause them are refused with a message of their own, and a
+    warning line would break the one-line error contract of the CLI."""
+    import warnings
+
+    import numpy as np
+
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore", RuntimeWarning)
+        yield

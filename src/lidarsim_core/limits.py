@@ -230,3 +230,34 @@ def check_integration(trajectory: Any, t0: float, t1: float, *, source: str | Pa
 def check_frames(frames: float, *, source: str | Path | None, field: str) -> None:
     """Refuse a sequence of more than the ``frames`` limit."""
     check("frames", frames, what="a sequence of", source=source, field=field)
+
+
+# ---- scan-pattern commands -----------------------------------------------------------------
+def coverage_cells(sheet: Any, cell_deg: float) -> float:
+    """Cells of the coverage grid of datasheet ``sheet`` with cells of ``cell_deg`` (the
+    shape :func:`lidarsim_core.patterns.coverage.fov_coverage` builds), computed without
+    building it."""
+    if not (math.isfinite(cell_deg) and cell_deg > 0):
+        return math.inf
+    if sheet.fov_type == "panoramic":
+        return max(1.0, round(360.0 / cell_deg)) * (math.floor(sheet.fov_v_deg / cell_deg) + 1)
+    if sheet.fov_type == "circular":
+        reach = sheet.fov_h_deg / 2
+    else:
+        reach = math.hypot(sheet.fov_h_deg / 2, abs(sheet.fov_v_center_deg) + sheet.fov_v_deg / 2)
+    side = max(1.0, math.ceil(2 * (min(reach, 180.0) + cell_deg) / cell_deg))
+    return side * side
+
+
+def check_pattern_window(rate_hz: float, start_s: float, duration_s: float, *,
+                         budget: str, duration_field: str = "--duration",
+                         start_field: str = "--start",
+                         source: str | Path | None = None) -> None:
+    """Refuse a scan-pattern time window whose rays exceed limit ``budget`` or whose ray
+    indices leave the exact range of float64."""
+    check(budget, rate_hz * duration_s, source=source, field=duration_field,
+          what=f"{duration_field} {duration_s:g} s at {rate_hz:g} Hz")
+    if not rate_hz * (start_s + duration_s) < MAX_RAY_INDEX:
+        raise ConfigError(f"the window ends at t = {start_s + duration_s:g} s, where ray "
+                          f"indices ({rate_hz:g} Hz × time) exceed 2^53", source=source,
+                          field=start_field)

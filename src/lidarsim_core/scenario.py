@@ -273,7 +273,7 @@ class Scenario(_Strict):
         """A validated copy with top-level fields replaced (keeps the source file)."""
         data = self.model_dump()
         data.update(changes)
-        new = type(self).model_validate(data)
+        new = validate_model(type(self), data, source=self.source)  # one line, not a raw error
         new._source = self._source
         return new
 

@@ -101,6 +101,20 @@ def _is_lidarsim_cloud(path: Path) -> bool:
         return False
 
 
+def _read_cloud(path: Path, reader: Any) -> PointCloud:
+    """A run's cloud; a damaged one (bad frame JSON, missing columns) is one line naming it."""
+    from ..config_io import check_input_file
+
+    check_input_file(path, "point cloud", limit_name="data_bytes")
+    try:
+        return reader(path)
+    except (ValueError, KeyError, TypeError, AttributeError, OSError, EOFError,
+            zipfile.BadZipFile) as exc:  # json.JSONDecodeError is a ValueError
+        raise ConfigError(f"cannot read this lidarsim cloud: {type(exc).__name__}: "
+                          f"{' '.join(str(exc).split())}", source=path,
+                          field="frame_json") from None
+
+
 def find_scenario(directory: Path) -> Path:
     """The scenario file of a run directory (raises ConfigError naming the directory)."""
     for name in SCENARIO_NAMES:
@@ -140,7 +154,8 @@ def load_run(directory: str | Path, *, scenario: str | Path | None = None,
                           source=directory)
     scenario_path = Path(scenario) if scenario is not None else find_scenario(directory)
     scen = load_scenario(scenario_path)
-    clouds = {p: read_npz(p) for p in sorted(directory.glob("*.npz")) if _is_lidarsim_cloud(p)}
+    clouds = {p: _read_cloud(p, read_npz) for p in sorted(directory.glob("*.npz"))
+              if _is_lidarsim_cloud(p)}
     if not clouds:
         raise ConfigError("no point cloud written by lidarsim (.npz with frame_json) in the run "
                           "directory; write one with `lidarsim simulate ... --out DIR/cloud.npz`",
