@@ -460,3 +460,11 @@ def test_refusing_a_foreign_directory_leaves_no_lock(tmp_path, capsys):
     (tmp_path / "mine" / "notes.txt").write_text("mine")
     refused(["dataset", path, "--out", "mine"], capsys, "mine", "holds no lidarsim dataset")
     assert _entries(tmp_path / "mine") == {"notes.txt"}
+
+
+def test_every_limit_is_documented():
+    from lidarsim_core.limits import LIMITS
+
+    text = (Path(__file__).parents[1] / "docs" / "reliability.md").read_text()
+    for spec in LIMITS.values():
+        assert f"`{spec.env}`" in text, spec.env
