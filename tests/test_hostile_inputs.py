@@ -386,7 +386,7 @@ def test_fixed_attitude_euler_sequence_is_checked():
     (["simulate", "scene.yaml", "--out", "o.ply", "--seed", "-1"], ["--seed", "2^64 - 1"]),
     (["simulate", "scene.yaml", "--out", "o.ply", "--seed", str(2 ** 64 + 1)], ["--seed"]),
     (["simulate", "scene.yaml", "--out", "o.ply", "--frame", "abc"], ["--frame"]),
-    (["simulate", "scene.yaml", "--out", "o.ply", "--format", "nope"], ["--format"]),
+    (["simulate", "scene.yaml", "--out", "o.ply", "--format", "nope"], ["'format'"]),
     (["simulate", "scene.yaml", "--out", "o.ply", "--bogus"], ["--bogus"]),
     (["pattern", "livox-mid70", "--duration", "0.01", "--out", "p.npz", "--option",
       "b=[unclosed"], ["--option b", "malformed YAML"]),

@@ -244,7 +244,7 @@ def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwri
               backend: str | None, seed: int | None) -> None:
     from rich.markup import escape
 
-    from .errors import ConfigError, OutputError, UnknownNameError
+    from .errors import ConfigError, OutputError
     from .guard import check_output_path
     from .io.base import exporter_for, write_points_file
     from .io.paths import frame_paths, has_frame_field
@@ -271,12 +271,7 @@ def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwri
         raise OutputError(f"the scenario has {len(frames)} frames: put '{{frame}}' in --out "
                           "(e.g. cloud_{frame:04d}.ply) or choose one with --frame", source=out)
     targets = frame_paths(out, frames) if templated else [out]
-    try:
-        exporter = exporter_for(targets[0], fmt)  # unknown format: fail before simulating
-    except UnknownNameError as exc:
-        if fmt is None:
-            raise
-        raise UnknownNameError(exc.message, field="--format") from None
+    exporter = exporter_for(targets[0], fmt)  # unknown format: fail before simulating
     for target in targets:  # every output refused before simulating, not after
         check_output_path(target, overwrite=overwrite)
     sim = Simulation(scenario)  # guards third-party components itself

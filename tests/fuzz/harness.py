@@ -161,7 +161,9 @@ def snapshot(directory: Path) -> dict[str, str]:
 
 def _names(case: Case) -> list[str]:
     names = [p.name for p in case.directory.iterdir()] + list(case.outputs) + case.names
-    names += [a for a in case.argv if a.startswith("--")] + list(case.env)
+    options = [a for a in case.argv if a.startswith("--")]
+    # an option is named as '--seed' or as the field it sets ('format' for --format)
+    names += options + [f"'{a[2:]}'" for a in options] + list(case.env)
     return [n for n in names if n] + ["environment"]
 
 
