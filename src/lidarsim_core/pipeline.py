@@ -44,7 +44,7 @@ from .config_io import validate_model
 from .cull import PulseCuller
 from .datasheet import SensorDatasheet
 from .guard import check_sensor_outside, guard_components, interrupt_behind
-from .errors import ConfigError, LidarsimError, PluginError
+from .errors import ConfigError, LidarsimError, MeshError, PluginError
 from .materials import Material, MaterialTable, material_library, part_materials
 from .mesh import Mesh, load_mesh_file
 from .noise.base import NoiseContext, NoiseModel, Returns, perpendicular_basis
@@ -234,11 +234,15 @@ class Simulation:
                                  field=f"{field}.model")
         model = model_cls.from_config(cfg.options, source=scenario.source,
                                       field=f"{field}.options")
-        mesh = model.mesh()
-        if cfg.scale != 1.0:
-            mesh = Mesh.from_arrays(mesh.vertices * cfg.scale, mesh.faces, mesh.face_part,
-                                    mesh.part_names, name=mesh.name,
-                                    part_materials=mesh.part_materials)
+        try:  # a model's options or the scale can make an unusable mesh: name the field
+            mesh = model.mesh()
+            if cfg.scale != 1.0:
+                mesh = Mesh.from_arrays(mesh.vertices * cfg.scale, mesh.faces, mesh.face_part,
+                                        mesh.part_names, name=mesh.name,
+                                        part_materials=mesh.part_materials)
+        except MeshError as exc:  # a procedural model reads no file: the scenario is to blame
+            raise MeshError(f"model '{cfg.model}': {exc.message}", source=scenario.source,
+                            field=field) from None
         return mesh
 
     # ---- running ------------------------------------------------------------------------

@@ -86,7 +86,7 @@ def main() -> None:
                 else:
                     os.environ[key] = value
         protocol.write(json.dumps({
-            "code": code, "stdout": out.getvalue()[-4000:], "stderr": err.getvalue()[-4000:],
+            "code": code, "stdout": out.getvalue()[-1_000_000:], "stderr": err.getvalue()[-4000:],
             "seconds": time.perf_counter() - started,
             "maxrss_kib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss}) + "\n")
 

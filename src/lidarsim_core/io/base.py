@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any, ClassVar, Iterator
 
 from ..components import Component
-from ..errors import OutputError
+from ..errors import OutputError, UserInputError
 
 if TYPE_CHECKING:
     from ..pointcloud import PointCloud
@@ -100,6 +100,9 @@ def atomic_output(path: str | Path, *, overwrite: bool = True) -> Iterator[IO[by
                 os.unlink(tmp)
             except FileNotFoundError:
                 pass
+        if isinstance(exc, UserInputError) and exc.source is None:
+            # an exporter's complaint (a column that does not fit the format) names the file
+            raise type(exc)(exc.message, source=path, field=exc.field) from None
         if isinstance(exc, OSError) and not isinstance(exc, OutputError):
             # ENOSPC, EDQUOT, EIO...: one line naming the file, nothing left behind
             from ..guard import describe_os_error
