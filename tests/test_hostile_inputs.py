@@ -382,6 +382,7 @@ def test_fixed_attitude_euler_sequence_is_checked():
      ["--start", "finite"]),
     (["pattern", "livox-mid70", "--duration", "inf", "--out", "p.npz"], ["--duration"]),
     (["coverage", "livox-mid70", "--time", "0.1", "--bin-deg", "inf"], ["--bin-deg"]),
+    (["coverage", "livox-mid70", "--time", "0.1", "--cell-deg", "1e308"], ["--cell-deg", "<= 360"]),
     (["coverage", "livox-mid70", "--time", "0.1", "--start", "-1"], ["--start", ">= 0"]),
     (["simulate", "scene.yaml", "--out", "o.ply", "--seed", "-1"], ["--seed", "2^64 - 1"]),
     (["simulate", "scene.yaml", "--out", "o.ply", "--seed", str(2 ** 64 + 1)], ["--seed"]),

@@ -74,9 +74,10 @@ def check_seed_option(seed: int | None, flag: str = "--seed") -> None:
 
 
 def check_number_option(value: float | None, flag: str, *, minimum: float | None = None,
-                        positive: bool = False) -> None:
-    """Refuse a number option that is NaN or infinite, not > 0 (``positive``) or below
-    ``minimum``: options are checked at the edge like configuration fields."""
+                        maximum: float | None = None, positive: bool = False) -> None:
+    """Refuse a number option that is NaN or infinite, not > 0 (``positive``), below
+    ``minimum`` or above ``maximum``: options are checked at the edge like configuration
+    fields."""
     import math
 
     from .errors import ConfigError
@@ -89,6 +90,8 @@ def check_number_option(value: float | None, flag: str, *, minimum: float | None
         raise ConfigError(f"{flag} must be > 0, got {value:g}", field=flag)
     if minimum is not None and value < minimum:
         raise ConfigError(f"{flag} must be >= {minimum:g}, got {value:g}", field=flag)
+    if maximum is not None and value > maximum:
+        raise ConfigError(f"{flag} must be <= {maximum:g}, got {value:g}", field=flag)
 
 
 def run_guarded(func: Callable[[], Any]) -> Any:

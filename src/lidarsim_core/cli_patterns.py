@@ -111,8 +111,8 @@ def _coverage(sensor: str, time_s: float, cell_deg: float, bin_deg: float, start
     from .limits import check, check_pattern_window, coverage_cells
 
     _check_positive(time_s, "--time")
-    _check_positive(cell_deg, "--cell-deg")
-    _check_positive(bin_deg, "--bin-deg")
+    check_number_option(cell_deg, "--cell-deg", positive=True, maximum=360.0)
+    check_number_option(bin_deg, "--bin-deg", positive=True, maximum=180.0)
     check_number_option(start, "--start", minimum=0.0)
     check("profile_bins", 180.0 / bin_deg, what=f"--bin-deg {bin_deg:g}", field="--bin-deg")
     pat = _pattern(sensor, options)

@@ -42,7 +42,7 @@ def _report(run: Path, out: Path | None, scenario: Path | None, frame: int | Non
     from .cli import check_number_option
 
     check_number_option(coverage_time, "--coverage-time", positive=True)
-    check_number_option(cell_deg, "--cell-deg", positive=True)
+    check_number_option(cell_deg, "--cell-deg", positive=True, maximum=360.0)
     result = write_report(run, out, scenario=scenario, frame=frame, colour_by=color_by,
                           coverage_time_s=coverage_time, cell_deg=cell_deg, three_d=three_d)
     print_report_summary(result)

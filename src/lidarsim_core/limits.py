@@ -237,7 +237,7 @@ def coverage_cells(sheet: Any, cell_deg: float) -> float:
     """Cells of the coverage grid of datasheet ``sheet`` with cells of ``cell_deg`` (the
     shape :func:`lidarsim_core.patterns.coverage.fov_coverage` builds), computed without
     building it."""
-    if not (math.isfinite(cell_deg) and cell_deg > 0):
+    if not (math.isfinite(cell_deg) and 0 < cell_deg <= 360):
         return math.inf
     if sheet.fov_type == "panoramic":
         return max(1.0, round(360.0 / cell_deg)) * (math.floor(sheet.fov_v_deg / cell_deg) + 1)

@@ -165,6 +165,8 @@ def fov_coverage(pattern: ScanPattern, duration_s: float, cell_deg: float = 0.5,
         raise ValueError("duration_s must be > 0")
     if not cell_deg > 0 or not bin_deg > 0:
         raise ValueError("cell_deg and bin_deg must be > 0")
+    if not (cell_deg <= 360 and bin_deg <= 180):  # larger cells overflow the grid's size
+        raise ValueError("cell_deg must be at most 360 and bin_deg at most 180")
     # the resource budget, before the grid and the bins are allocated
     from ..limits import check, check_pattern_window, coverage_cells
 
