@@ -126,6 +126,8 @@ def test_chunk_lists_are_budgeted(tmp_path, capsys, monkeypatch):
      ["--time", "100,000,000,000 rays", "LIDARSIM_MAX_RAYS_PER_FRAME"]),
     (["coverage", "livox-mid70", "--time", "0.1", "--bin-deg", "1e-9"],
      ["--bin-deg", "bins", "LIDARSIM_MAX_PROFILE_BINS"]),
+    (["coverage", "ouster-os1-128", "--time", "0.01", "--cell-deg", "1e-300"],
+     ["--cell-deg", "an infinite number of cells"]),
     (["pattern", "livox-mid70", "--duration", "0.01", "--start", "1e300", "--out", "p.npz"],
      ["--start", "2^53"]),
 ])
@@ -433,6 +435,9 @@ def test_dataset_file_overrides_are_blamed_on_the_dataset_file(tmp_path, capsys)
     (tmp_path / "seed.yaml").write_text(yaml.safe_dump({"sequences": [
         {"scenario": "scene.yaml", "seeds": [1, 2 ** 64]}]}))
     refused(["dataset", "seed.yaml", "--out", "ds"], capsys, "seed.yaml", "sequences.0.seeds.1")
+    (tmp_path / "splits.yaml").write_text("sequences: [{scenario: scene.yaml}]\n"
+                                          "splits: {train: .inf}\n")
+    refused(["dataset", "splits.yaml", "--out", "ds"], capsys, "splits.yaml", "splits.train")
     assert not (tmp_path / "ds").exists()
 
 

@@ -129,6 +129,10 @@ def check(name: str, value: float, *, what: str = "", source: str | Path | None 
         Naming ``source`` and ``field``, the size, the limit and the variable that raises it.
     """
     bound = limit(name)
+    try:
+        value = float(value)
+    except OverflowError:  # an integer beyond float range
+        value = math.inf
     if value <= bound:  # NaN fails this comparison and is refused too
         return
     spec = LIMITS[name]
@@ -240,12 +244,13 @@ def coverage_cells(sheet: Any, cell_deg: float) -> float:
     if not (math.isfinite(cell_deg) and 0 < cell_deg <= 360):
         return math.inf
     if sheet.fov_type == "panoramic":
-        return max(1.0, round(360.0 / cell_deg)) * (math.floor(sheet.fov_v_deg / cell_deg) + 1)
+        return max(1.0, float(round(360.0 / cell_deg))) * \
+            float(math.floor(sheet.fov_v_deg / cell_deg) + 1)
     if sheet.fov_type == "circular":
         reach = sheet.fov_h_deg / 2
     else:
         reach = math.hypot(sheet.fov_h_deg / 2, abs(sheet.fov_v_center_deg) + sheet.fov_v_deg / 2)
-    side = max(1.0, math.ceil(2 * (min(reach, 180.0) + cell_deg) / cell_deg))
+    side = max(1.0, float(math.ceil(2 * (min(reach, 180.0) + cell_deg) / cell_deg)))
     return side * side
 
 
