@@ -438,6 +438,9 @@ def test_dataset_file_overrides_are_blamed_on_the_dataset_file(tmp_path, capsys)
     (tmp_path / "splits.yaml").write_text("sequences: [{scenario: scene.yaml}]\n"
                                           "splits: {train: .inf}\n")
     refused(["dataset", "splits.yaml", "--out", "ds"], capsys, "splits.yaml", "splits.train")
+    (tmp_path / "nul.yaml").write_text('sequences: [{scenario: "\\0"}]\n')
+    refused(["dataset", "nul.yaml", "--out", "ds"], capsys, "nul.yaml", "sequences.0.scenario",
+            "NUL character")
     assert not (tmp_path / "ds").exists()
 
 

@@ -50,6 +50,8 @@ def check_input_file(path: str | Path, what: str = "file", *, limit_name: str = 
     path = Path(path)
     where = {"source": source, "field": field} if source is not None else {"source": path}
     prefix = f"{path}: " if field is not None else ""
+    if "\0" in str(path):  # no file system allows it; os.stat would raise a bare ValueError
+        raise error(f"{prefix}the path contains a NUL character", **where)
     try:
         info = os.stat(path)
     except OSError as exc:

@@ -243,6 +243,8 @@ def check_output_path(path: str | Path, *, overwrite: bool, what: str = "output 
     from .errors import OutputError
 
     target = Path(path)
+    if "\0" in str(target):
+        raise OutputError("the path contains a NUL character", source=repr(str(target)))
     parent = target.parent if str(target.parent) else Path(".")
     try:
         name_max = os.pathconf(parent, "PC_NAME_MAX") if parent.is_dir() else 255
