@@ -42,11 +42,11 @@ def _cpu_count() -> int:
 
 
 def worker_threads() -> int:
-    """Threads to use: ``LIDARSIM_THREADS`` if set to a positive integer, else the CPU count."""
-    value = os.environ.get("LIDARSIM_THREADS", "").strip()
-    if value.isdigit() and int(value) > 0:
-        return int(value)
-    return _cpu_count()
+    """Threads to use: ``LIDARSIM_THREADS`` if set (a positive integer within the limit of
+    :mod:`lidarsim_core.limits`), else the CPU count."""
+    from .limits import threads_from_env  # refuses junk and absurd counts with one line
+
+    return threads_from_env(_cpu_count())
 
 
 def shared_pool(threads: int, purpose: str = "cast") -> ThreadPoolExecutor:

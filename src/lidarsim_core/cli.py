@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any, Callable, Optional
 
 import typer
+from rich.markup import escape
 
 from .cli_output import Column, hide_flag_metavars, print_json, print_table
 from .errors import LidarsimError, UserInputError
@@ -54,12 +55,46 @@ def _console(stderr: bool = False):
 
 
 def _fail(message: str, code: int) -> None:
-    _console(stderr=True).print(f"[bold red]error:[/] {message}", soft_wrap=True)
+    from rich.text import Text
+
+    # a Text is never parsed for markup: file names, keys and values are printed verbatim
+    _console(stderr=True).print(Text.assemble(("error:", "bold red"), " ", message),
+                                soft_wrap=True)
     raise typer.Exit(code)
 
 
 def _one_line(exc: BaseException) -> str:
     return " ".join(str(exc).split())
+
+
+def check_seed_option(seed: int | None, flag: str = "--seed") -> None:
+    """Refuse a seed option outside 0 to 2^64 - 1 (a larger one would alias a smaller)."""
+    from .errors import ConfigError
+    from .limits import MAX_SEED
+
+    if seed is not None and not 0 <= seed <= MAX_SEED:
+        raise ConfigError(f"{flag} {seed} is outside 0..{MAX_SEED} (2^64 - 1)", field=flag)
+
+
+def check_number_option(value: float | None, flag: str, *, minimum: float | None = None,
+                        maximum: float | None = None, positive: bool = False) -> None:
+    """Refuse a number option that is NaN or infinite, not > 0 (``positive``), below
+    ``minimum`` or above ``maximum``: options are checked at the edge like configuration
+    fields."""
+    import math
+
+    from .errors import ConfigError
+
+    if value is None:
+        return
+    if not math.isfinite(value):
+        raise ConfigError(f"{flag} must be a finite number, got {value}", field=flag)
+    if positive and not value > 0:
+        raise ConfigError(f"{flag} must be > 0, got {value:g}", field=flag)
+    if minimum is not None and value < minimum:
+        raise ConfigError(f"{flag} must be >= {minimum:g}, got {value:g}", field=flag)
+    if maximum is not None and value > maximum:
+        raise ConfigError(f"{flag} must be <= {maximum:g}, got {value:g}", field=flag)
 
 
 def run_guarded(func: Callable[[], Any]) -> Any:
@@ -70,11 +105,13 @@ def run_guarded(func: Callable[[], Any]) -> Any:
     any other failure, 130 after Ctrl-C (SIGINT), 143 after SIGTERM.
     """
     from .errors import PluginError
-    from .guard import SIGTERM_EXIT_CODE, Terminated, interrupt_behind
+    from .guard import (SIGTERM_EXIT_CODE, Terminated, interrupt_behind, os_error_line,
+                        quiet_numerics)
 
     try:
         try:
-            return func()
+            with quiet_numerics():
+                return func()
         except Exception as exc:  # an interrupt surfacing through a compiled kernel
             interrupt = interrupt_behind(exc)
             if interrupt is None:
@@ -90,6 +127,10 @@ def run_guarded(func: Callable[[], Any]) -> Any:
         if _state["debug"]:
             raise
         _fail(_one_line(exc), 1)
+    except OSError as exc:  # a path the user gave cannot be read or written (ENOSPC, EROFS...)
+        if _state["debug"]:
+            raise
+        _fail(_one_line(os_error_line(exc)), 2)
     except Terminated as exc:  # a command that keeps finished work says so in the message
         _fail(f"terminated (SIGTERM); {str(exc) or 'no partial output was kept'}",
               SIGTERM_EXIT_CODE)
@@ -147,6 +188,8 @@ def _demo(out: Path, duration: float, backend: str, detail: str, seed: int,
     from .outputs import check_files
     from .pipeline import Simulation
 
+    check_number_option(duration, "--duration", positive=True)
+    check_seed_option(seed)
     check_files(out, demo_files(), overwrite=overwrite)  # before any work: nothing replaced
     started = time.perf_counter()
     t0 = time.perf_counter()
@@ -191,7 +234,7 @@ def _demo(out: Path, duration: float, backend: str, detail: str, seed: int,
         print_json(summary)
         return
     console = _console()
-    console.print(f"wrote {len(written)} files to {out}/: the clouds with and without errors "
+    console.print(f"wrote {len(written)} files to {escape(str(out))}/: the clouds with and without errors "
                   "(.ply, .npz, each with a sidecar .json), scenario.yaml and the report")
     console.print(f"total wall time {summary['wall_s']:.2f} s")
 
@@ -225,8 +268,8 @@ def _demo_summary(out: Path, runs: dict[str, Any], compile_s: float | None) -> d
 
 def _print_demo_summary(summary: dict[str, Any]) -> None:
     console = _console()
-    console.print(f"[bold]lidarsim demo[/]: {summary['sensor']} scanning Envisat for "
-                  f"{summary['duration_s']:g} s, backend [bold]{summary['backend']}[/], seed "
+    console.print(f"[bold]lidarsim demo[/]: {escape(summary['sensor'])} scanning Envisat for "
+                  f"{summary['duration_s']:g} s, backend [bold]{escape(summary['backend'])}[/], seed "
                   f"{summary['seed']}")
     if summary["kernels_ready_s"] is not None:
         console.print(f"compiled kernels ready in {summary['kernels_ready_s']:.2f} s (compiled "
@@ -289,6 +332,7 @@ def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwri
     from .pipeline import Simulation
     from .scenario import load_scenario
 
+    check_seed_option(seed)
     scenario = load_scenario(path)
     changes: dict[str, Any] = {}
     if backend is not None:
@@ -338,7 +382,7 @@ def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwri
 
                 save_range_image(spool.to_cloud(), sim.pattern, target, overwrite=overwrite)
         console.print(f"frame {f}: {points:,} points from {info.rays_emitted:,} rays "
-                      f"in {time.perf_counter() - t0:.2f} s → {target}")
+                      f"in {time.perf_counter() - t0:.2f} s → {escape(str(target))}")
         if points == 0:
             console.print(f"note: frame {f} is empty: no point was detected within "
                           f"{sim.sensor.range_min_m:g}–{sim.sensor.range_max_m:g} m (targets "
@@ -445,21 +489,48 @@ def _load_command_modules() -> None:
 def _show_warning(message: Any, category: type[Warning], filename: str, lineno: int,
                   file: Any = None, line: str | None = None) -> None:
     """Warnings are one line on stderr, ``warning: ...``, like errors (no source location)."""
-    from rich.markup import escape
-
     _console(stderr=True).print(f"[yellow]warning:[/] {escape(str(message))}")
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Console-script entry point."""
+    """Console-script entry point; exits the process with the command's status."""
     import warnings
 
+    warnings.showwarning = _show_warning
+    sys.exit(_run_app(argv))
+
+
+def _run_app(argv: list[str] | None) -> int:
     from .guard import sigterm_as_interrupt
 
-    warnings.showwarning = _show_warning
+    try:  # Typer >= 0.26 carries its own copy of Click
+        from typer._click.exceptions import NoArgsIsHelpError, UsageError
+    except ImportError:  # pragma: no cover - older Typer on Click
+        from click.exceptions import NoArgsIsHelpError, UsageError  # type: ignore[no-redef]
+
     _load_command_modules()
     with sigterm_as_interrupt():
-        app(args=argv, prog_name="lidarsim")
+        try:
+            # not standalone: a usage error (bad option value, unknown option) comes back here
+            # and is printed as one line, like every other mistake
+            code = app(args=argv, prog_name="lidarsim", standalone_mode=False)
+        except NoArgsIsHelpError as exc:
+            exc.show()
+            return exc.exit_code
+        except UsageError as exc:
+            command = exc.ctx.command_path if exc.ctx is not None else "lidarsim"
+            return _fail_code(f"{command}: {_one_line(exc.format_message())}", 2)
+        except typer.Abort:
+            return _fail_code("interrupted; no partial output was kept", 130)
+    return code if isinstance(code, int) else 0
+
+
+def _fail_code(message: str, code: int) -> int:
+    try:
+        _fail(message, code)
+    except typer.Exit as stop:
+        return stop.exit_code
+    return code
 
 
 if __name__ == "__main__":  # pragma: no cover

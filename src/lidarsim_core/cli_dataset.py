@@ -36,15 +36,20 @@ def _dataset(source: Path, out: Path, frames: int | None, fmt: str | None,
              workers: int | None, scheduler: str | None, verify: bool, quiet: bool) -> None:
     from .dataset import generate_dataset
     from .errors import ConfigError
+    from .limits import check_frames
 
     if workers is not None and scheduler is not None:
         raise ConfigError("give --workers or --scheduler, not both", field="workers")
+    if frames is not None:
+        check_frames(frames, source=None, field="--frames")
     result = generate_dataset(source, out, frames=frames, format=fmt, workers=workers,
                               scheduler=scheduler, quiet=quiet, verify=verify)
     if quiet:
         return
     rate = result.frames_written / result.elapsed_s if result.elapsed_s > 0 else 0.0
+    from rich.markup import escape
+
     _console().print(
-        f"dataset {result.root}: {result.frames_total} frames ({result.frames_written} written, "
+        f"dataset {escape(str(result.root))}: {result.frames_total} frames ({result.frames_written} written, "
         f"{result.frames_skipped} already done), {result.points_written:,} points in "
         f"{result.elapsed_s:.1f} s ({rate:.2f} frames/s) → {result.manifest.name}")

@@ -11,7 +11,7 @@ named objects (:mod:`lidarsim_core.io.meshfile`).
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Optional
+from typing import Any
 
 import typer
 

@@ -36,6 +36,7 @@ def _poses(path: Path, out: Path, clouds: str | None, frame: int | None,
            overwrite: bool) -> None:
     from .errors import ConfigError, OutputError
     from .groundtruth import sequence_frame_infos, write_ground_truth
+    from .io.paths import frame_paths
     from .outputs import check_file, make_parent
     from .scenario import load_scenario
 
@@ -47,10 +48,11 @@ def _poses(path: Path, out: Path, clouds: str | None, frame: int | None,
     if clouds is not None and n_frames > 1 and frame is None and "{frame" not in clouds:
         raise OutputError("--clouds needs '{frame}' in it for a sequence "
                           "(e.g. cloud_{frame:04d}.ply)", source=clouds)
-    check_file(out, overwrite=overwrite)  # the one overwrite policy (lidarsim_core.outputs)
+    check_file(out, overwrite=overwrite, what="pose file")  # lidarsim_core.outputs
     indices = [frame] if frame is not None else list(range(n_frames))
+    # the same template rules as --out: only {frame}, with a zero-padded width
+    names = [str(p) for p in frame_paths(clouds, indices)] if clouds is not None else None
     infos = sequence_frame_infos(scenario, indices)
-    names = [clouds.format(frame=f) for f in indices] if clouds is not None else None
     make_parent(out)
     write_ground_truth(out, infos, clouds=names, overwrite=overwrite)
     typer.echo(f"wrote poses of {len(infos)} frame(s) and {len(infos[0].target_names)} "

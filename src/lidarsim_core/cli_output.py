@@ -85,6 +85,7 @@ def print_table(columns: Sequence[Column], rows: Iterable[Sequence[Any]], *,
         write_stdout((title + "\n" if title else "") + plain_table(columns, rows))
         return
     from rich.table import Table
+    from rich.text import Text
 
     out = console()
     shown = _fitting_columns(columns, rows, out.width)
@@ -98,12 +99,12 @@ def print_table(columns: Sequence[Column], rows: Iterable[Sequence[Any]], *,
         else:
             table.add_column(col.header, justify="right" if col.right else "left")
     for row in rows:
-        table.add_row(*(str(row[i]) for i in shown))
+        table.add_row(*(Text(str(row[i])) for i in shown))  # cells verbatim: never markup
     out.print(table, soft_wrap=False)
     hidden = [c.header for i, c in enumerate(columns) if i not in shown]
     if hidden:
-        out.print(f"({len(hidden)} columns left out at this width: {', '.join(hidden)}; "
-                  "--json or a wider terminal shows them)", style="dim")
+        out.print(Text(f"({len(hidden)} columns left out at this width: {', '.join(hidden)}; "
+                       "--json or a wider terminal shows them)", style="dim"))
 
 
 def _fitting_columns(columns: Sequence[Column], rows: list[list[Any]], width: int

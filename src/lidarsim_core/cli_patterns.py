@@ -19,9 +19,8 @@ def _console() -> Any:
 
 def _pattern(sensor: str, options: list[str]) -> Any:
     """The scan pattern of a catalogue sensor or datasheet file, with ``KEY=VALUE`` overrides."""
-    import yaml
-
     from .builtin_sensors import get_sensor
+    from .config_io import parse_option_value
     from .errors import ConfigError
     from .patterns.coverage import pattern_for
 
@@ -31,15 +30,14 @@ def _pattern(sensor: str, options: list[str]) -> Any:
         key, sep, value = item.partition("=")
         if not sep or not key.strip():
             raise ConfigError(f"--option expects KEY=VALUE, got {item!r}", field="--option")
-        overrides[key.strip()] = yaml.safe_load(value)
+        overrides[key.strip()] = parse_option_value(value, field=f"--option {key.strip()}")
     return pattern_for(sheet, overrides, source=sensor)
 
 
 def _check_positive(value: float, flag: str) -> None:
-    from .errors import ConfigError
+    from .cli import check_number_option
 
-    if not value > 0:
-        raise ConfigError(f"{flag} must be > 0, got {value:g}", field=flag)
+    check_number_option(value, flag, positive=True)
 
 
 @app.command()
@@ -64,12 +62,17 @@ def _export(sensor: str, duration: float, out: Path, start: float, options: list
     from .io.base import atomic_output
     from .outputs import check_file, make_parent
 
+    from .cli import check_number_option
+    from .limits import check_pattern_window
+
     _check_positive(duration, "--duration")
+    check_number_option(start, "--start", minimum=0.0)
     if out.suffix.lower() != ".npz":
         raise OutputError("the ray export is written as .npz; give a file ending in .npz",
                           source=out)
     check_file(out, overwrite=overwrite)  # the one overwrite policy (lidarsim_core.outputs)
     pat = _pattern(sensor, options)
+    check_pattern_window(pat.rate_hz, start, duration, budget="pattern_rays")
     batch = pat.rays(start, start + duration)
     buffer = io.BytesIO()
     np.savez_compressed(buffer, t=batch.t, direction=batch.direction, channel=batch.channel,
@@ -78,8 +81,10 @@ def _export(sensor: str, duration: float, out: Path, start: float, options: list
     make_parent(out)
     with atomic_output(out, overwrite=overwrite) as stream:
         stream.write(buffer.getvalue())
+    from rich.markup import escape
+
     _console().print(f"{pat.sensor.name} ({pat.name}): {len(batch):,} rays in "
-                     f"[{start:g}, {start + duration:g}) s → {out}")
+                     f"\\[{start:g}, {start + duration:g}) s → {escape(str(out))}")
 
 
 @app.command()
@@ -102,11 +107,20 @@ def _coverage(sensor: str, time_s: float, cell_deg: float, bin_deg: float, start
     from .cli_output import Column, print_json, print_table
     from .patterns.coverage import fov_coverage
 
+    from .cli import check_number_option
+    from .limits import check, check_pattern_window, coverage_cells
+
     _check_positive(time_s, "--time")
-    _check_positive(cell_deg, "--cell-deg")
-    _check_positive(bin_deg, "--bin-deg")
-    report = fov_coverage(_pattern(sensor, options), time_s, cell_deg, t_start_s=start,
-                          bin_deg=bin_deg)
+    check_number_option(cell_deg, "--cell-deg", positive=True, maximum=360.0)
+    check_number_option(bin_deg, "--bin-deg", positive=True, maximum=180.0)
+    check_number_option(start, "--start", minimum=0.0)
+    check("profile_bins", 180.0 / bin_deg, what=f"--bin-deg {bin_deg:g}", field="--bin-deg")
+    pat = _pattern(sensor, options)
+    check("coverage_cells", coverage_cells(pat.sensor, cell_deg), field="--cell-deg",
+          what=f"--cell-deg {cell_deg:g} over a {pat.sensor.fov_h_deg:g}° field of view")
+    check_pattern_window(pat.rate_hz, start, time_s, budget="rays_per_frame",
+                         duration_field="--time")
+    report = fov_coverage(pat, time_s, cell_deg, t_start_s=start, bin_deg=bin_deg)
     if as_json:
         print_json(report.to_dict())
         return

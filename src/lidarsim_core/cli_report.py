@@ -40,14 +40,12 @@ def report(run: Path = typer.Argument(..., help="Run directory: lidarsim .npz cl
 def _report(run: Path, out: Path | None, scenario: Path | None, frame: int | None,
             color_by: str, coverage_time: float | None, cell_deg: float, three_d: bool,
             overwrite: bool = False) -> None:
-    from .errors import ConfigError
     from .report import write_report
 
-    if coverage_time is not None and not coverage_time > 0:
-        raise ConfigError(f"--coverage-time must be > 0, got {coverage_time:g}",
-                          field="--coverage-time")
-    if not cell_deg > 0:
-        raise ConfigError(f"--cell-deg must be > 0, got {cell_deg:g}", field="--cell-deg")
+    from .cli import check_number_option
+
+    check_number_option(coverage_time, "--coverage-time", positive=True)
+    check_number_option(cell_deg, "--cell-deg", positive=True, maximum=360.0)
     result = write_report(run, out, scenario=scenario, frame=frame, colour_by=color_by,
                           coverage_time_s=coverage_time, cell_deg=cell_deg, three_d=three_d,
                           overwrite=overwrite)
@@ -76,7 +74,7 @@ def print_report_summary(result: Any) -> None:
     for note in result.notes:
         console.print(f"[yellow]note:[/] {escape(note)}", soft_wrap=True)
     console.print(f"wrote {len(result.figures)} figures, report.json and report.html to "
-                  f"{result.out_dir}/")
+                  f"{escape(str(result.out_dir))}/")
 
 
 def demo_report(out: Path, *, quiet: bool = False) -> Any:

@@ -7,7 +7,10 @@ code and never silently drops a value.
 
 from __future__ import annotations
 
+import errno
 import json
+import os
+import stat
 import tomllib
 from pathlib import Path
 from typing import Any
@@ -15,20 +18,106 @@ from typing import Any
 from pydantic import BaseModel, ValidationError
 
 from .components import first_validation_error
-from .errors import ConfigError
+from .errors import ConfigError, UserInputError
 
 CONFIG_SUFFIXES = (".yaml", ".yml", ".toml", ".json")
 
 
-def read_text_file(path: Path, what: str = "file") -> str:
-    """The UTF-8 text of ``path``; a :class:`ConfigError` naming the file and saying ``what``
-    it is when it is missing or unreadable."""
+def _describe(error: OSError) -> str:
+    """The reason an OS call failed on a path, in words (errno-specific where it matters)."""
+    reasons = {errno.ENOENT: "not found", errno.ELOOP: "is a symbolic link loop",
+               errno.ENAMETOOLONG: "file name too long", errno.EACCES: "permission denied",
+               errno.EPERM: "operation not permitted", errno.ENOTDIR: "a parent is not a "
+               "directory", errno.EISDIR: "is a directory", errno.ENOSPC: "no space left on "
+               "the device", errno.EROFS: "read-only file system", errno.EDQUOT: "disk quota "
+               "exceeded", errno.EIO: "input/output error", errno.EFBIG: "file too large",
+               errno.EEXIST: "already exists", errno.EMFILE: "too many open files"}
+    return reasons.get(error.errno or 0) or " ".join((error.strerror or str(error)).split())
+
+
+def check_input_file(path: str | Path, what: str = "file", *, limit_name: str = "config_bytes",
+                     error: type[UserInputError] = ConfigError,
+                     source: str | Path | None = None, field: str | None = None) -> int:
+    """Check that ``path`` is a regular file lidarsim may read, and return its size.
+
+    Refused with one line naming the file (or ``source`` and ``field``) and saying what it is
+    instead: missing, a dangling or looping symbolic link, a directory, a named pipe (FIFO),
+    a device (``/dev/zero``), a socket, unreadable, or larger than the ``limit_name`` limit of
+    :mod:`lidarsim_core.limits`. Nothing is opened, so a FIFO or device never blocks.
+    """
+    from .limits import LIMITS, limit
+
+    path = Path(path)
+    where = {"source": source, "field": field} if source is not None else {"source": path}
+    prefix = f"{path}: " if field is not None else ""
+    if "\0" in str(path):  # no file system allows it; os.stat would raise a bare ValueError
+        raise error(f"{prefix}the path contains a NUL character", **where)
     try:
-        return path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ConfigError(f"{what} not found", source=path) from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ConfigError(f"cannot read {what}: {exc}", source=path) from None
+        info = os.stat(path)
+    except OSError as exc:
+        if exc.errno == errno.ENOENT and os.path.islink(path):
+            reason = "is a dangling symbolic link (its target does not exist)"
+        elif exc.errno == errno.ENOENT:
+            reason = f"{what} not found"
+        else:
+            reason = f"cannot read {what}: {_describe(exc)}"
+        raise error(prefix + reason, **where) from None
+    mode = info.st_mode
+    kind = None
+    if stat.S_ISDIR(mode):
+        kind = "a directory"
+    elif stat.S_ISFIFO(mode):
+        kind = "a named pipe (FIFO)"
+    elif stat.S_ISCHR(mode) or stat.S_ISBLK(mode):
+        kind = "a device"
+    elif stat.S_ISSOCK(mode):
+        kind = "a socket"
+    elif not stat.S_ISREG(mode):
+        kind = "not a regular file"
+    if kind is not None:
+        raise error(f"{prefix}is {kind}, not a {what}" if kind[0] == "a" else
+                    f"{prefix}{kind}", **where)
+    bound = limit(limit_name)
+    if info.st_size > bound:
+        raise error(f"{prefix}{what} is {info.st_size:,} bytes, over the limit of "
+                    f"{bound:,.0f} (set {LIMITS[limit_name].env} to raise it)", **where)
+    return info.st_size
+
+
+def read_bytes_file(path: str | Path, what: str = "file", *, limit_name: str = "config_bytes",
+                    error: type[UserInputError] = ConfigError,
+                    source: str | Path | None = None, field: str | None = None) -> bytes:
+    """The bytes of ``path``, read through :func:`check_input_file` and never more than the
+    limit (a file that grows while it is read is refused too)."""
+    from .limits import limit
+
+    check_input_file(path, what, limit_name=limit_name, error=error, source=source,
+                     field=field)
+    bound = int(limit(limit_name))
+    where = {"source": source, "field": field} if source is not None else {"source": path}
+    prefix = f"{path}: " if field is not None else ""
+    try:
+        with open(path, "rb") as stream:
+            data = stream.read(bound + 1)
+    except OSError as exc:
+        raise error(f"{prefix}cannot read {what}: {_describe(exc)}", **where) from None
+    if len(data) > bound:
+        raise error(f"{prefix}{what} grew beyond the limit of {bound:,} bytes while it was "
+                    "read", **where)
+    return data
+
+
+def read_text_file(path: Path, what: str = "file", *, encoding: str = "utf-8",
+                   error: type[UserInputError] = ConfigError) -> str:
+    """The text of ``path`` through the bounded reader (:func:`check_input_file`); a
+    :class:`ConfigError` naming the file and saying ``what`` it is when it is missing,
+    unreadable, not a regular file, too large or not UTF-8."""
+    data = read_bytes_file(path, what, error=error)
+    try:
+        return data.decode(encoding)
+    except UnicodeDecodeError as exc:
+        raise error(f"cannot read {what}: not UTF-8 text (byte {exc.start:,} is "
+                    f"0x{data[exc.start]:02x})", source=path) from None
 
 
 def read_json_file(path: Path, what: str) -> Any:
@@ -39,9 +128,12 @@ def read_json_file(path: Path, what: str) -> Any:
         return json.loads(text)
     except json.JSONDecodeError as exc:
         raise ConfigError(f"cannot read {what}: {exc}", source=path) from None
+    except RecursionError:
+        raise ConfigError(f"cannot read {what}: values are nested too deeply",
+                          source=path) from None
 
 
-def read_config_file(path: str | Path) -> dict[str, Any]:
+def read_config_file(path: str | Path, what: str = "file") -> dict[str, Any]:
     """Parse a YAML/TOML/JSON file into a mapping.
 
     Raises
@@ -51,10 +143,11 @@ def read_config_file(path: str | Path) -> dict[str, Any]:
     """
     path = Path(path)
     suffix = path.suffix.lower()
+    check_input_file(path, what)  # a device, FIFO or directory is named as such first
     if suffix not in CONFIG_SUFFIXES:
         raise ConfigError(f"unsupported configuration format '{suffix or '(none)'}'; use one of "
                           f"{', '.join(CONFIG_SUFFIXES)}", source=path)
-    data = parse_config_text(read_text_file(path), suffix, source=path)
+    data = parse_config_text(read_text_file(path, what), suffix, source=path)
     return data
 
 
@@ -67,14 +160,7 @@ def parse_config_text(text: str, suffix: str, *, source: str | Path = "<string>"
             try:
                 data = yaml.load(text, Loader=_safe_loader())  # a SafeLoader: plain data only
             except yaml.YAMLError as exc:
-                mark = getattr(exc, "problem_mark", None)
-                where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
-                problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-                if problem.startswith("could not determine a constructor for the tag"):
-                    tag = problem.rsplit(" ", 1)[-1]
-                    raise ConfigError(f"YAML tag {tag}{where} is not allowed: configuration "
-                                      "files hold plain data only", source=source) from None
-                raise ConfigError(f"malformed YAML{where}: {problem}", source=source) from None
+                raise _yaml_error(exc, source=source) from None
         elif suffix == ".toml":
             data = tomllib.loads(text)
         else:
@@ -92,6 +178,33 @@ def parse_config_text(text: str, suffix: str, *, source: str | Path = "<string>"
         raise ConfigError(f"top level must be a mapping, not {type(data).__name__}", source=source)
     _check_expanded_size(data, source)
     return data
+
+
+def _yaml_error(exc: Exception, *, source: str | Path | None, field: str | None = None
+                ) -> ConfigError:
+    mark = getattr(exc, "problem_mark", None)
+    where = f" at line {mark.line + 1}, column {mark.column + 1}" if mark else ""
+    problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+    if problem.startswith("could not determine a constructor for the tag"):
+        tag = problem.rsplit(" ", 1)[-1]
+        return ConfigError(f"YAML tag {tag}{where} is not allowed: configuration files hold "
+                           "plain data only", source=source, field=field)
+    return ConfigError(f"malformed YAML{where}: {problem}", source=source, field=field)
+
+
+def parse_option_value(text: str, *, field: str) -> Any:
+    """A ``KEY=VALUE`` command-line value read as YAML with the same safe loader as files
+    (plain data only; malformed values and tags are one line naming ``field``)."""
+    import yaml
+
+    try:
+        value = yaml.load(text, Loader=_safe_loader())
+    except yaml.YAMLError as exc:
+        raise _yaml_error(exc, source=None, field=field) from None
+    except RecursionError:
+        raise ConfigError("value is nested too deeply", field=field) from None
+    _check_expanded_size({"value": value}, field)
+    return value
 
 
 #: Most values (scalars, lists and mappings, counted as often as YAML aliases repeat them) a

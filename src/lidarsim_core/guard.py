@@ -202,3 +202,32 @@ def check_sensor_outside(sim: "Simulation", frame: int) -> None:
                     f"the sensor is inside the closed target '{target.name}' at t = {t:g} s "
                     "(every probe ray meets the inner side of its surface); move the sensor "
                     "or the target", source=scenario.source, field=field)
+
+
+# ---- the error boundary: output paths, OS errors, numerical warnings ------------------------
+def describe_os_error(exc: OSError) -> str:
+    """The reason of an OS error in words ("no space left on the device", ...)."""
+    from .config_io import _describe
+
+    return _describe(exc)
+
+
+def os_error_line(exc: OSError) -> str:
+    """One line for an OS error: the path (both, for a rename) and the reason."""
+    paths = [str(p) for p in (exc.filename, exc.filename2) if p is not None]
+    reason = describe_os_error(exc)
+    return f"{' → '.join(paths)}: {reason}" if paths else reason
+
+
+@contextmanager
+def quiet_numerics() -> Iterator[None]:
+    """While the block runs, NumPy floating-point warnings (overflow, invalid values) are not
+    printed: inputs that would cause them are refused with a message of their own, and a
+    warning line would break the one-line error contract of the CLI."""
+    import warnings
+
+    import numpy as np
+
+    with warnings.catch_warnings(), np.errstate(all="ignore"):
+        warnings.simplefilter("ignore", RuntimeWarning)
+        yield

@@ -6,6 +6,8 @@ each backend builds its acceleration structure once per mesh (keyed by :attr:`Me
 
 from __future__ import annotations
 
+import warnings
+
 import hashlib
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -14,9 +16,15 @@ from typing import Any
 
 import numpy as np
 
+from .config_io import check_input_file
 from .errors import MeshError
+from .limits import LIMITS, check, limit
 
 #: Suffixes trimesh reads that we support explicitly (others trimesh knows are tried too).
+#: Largest vertex coordinate accepted (m): beyond it, areas and normals overflow float64 long
+#: before a LiDAR could see the part.
+MAX_COORDINATE_M = 1e7
+
 MESH_SUFFIXES = (".stl", ".obj", ".ply", ".glb", ".gltf", ".off")
 
 
@@ -65,6 +73,12 @@ class Mesh:
             raise MeshError("mesh has no triangular faces", source=where)
         if not np.all(np.isfinite(vertices)):
             raise MeshError("mesh has non-finite (NaN or infinite) vertex coordinates", source=where)
+        reach = float(np.abs(vertices).max()) if vertices.size else 0.0
+        if reach > MAX_COORDINATE_M:
+            raise MeshError(f"vertex coordinates reach {reach:.3g} m; meshes must lie within "
+                            f"±{MAX_COORDINATE_M:g} m of their origin (check the file's units "
+                            "and 'scale')", source=where)
+        check("mesh_triangles", len(faces), what="the mesh's triangle count", source=where)
         if faces.min() < 0 or faces.max() >= len(vertices):
             raise MeshError("face indices out of range", source=where)
         if face_part is None:
@@ -166,10 +180,8 @@ def load_mesh_file(path: str | Path, *, scale: float = 1.0, source: str | None =
 
     path = Path(path)
     where = f"{source}: field '{field}': {path}" if source and field else str(path)
-    if path.is_dir():
-        raise MeshError("is a directory, not a mesh file", source=where)
-    if not path.is_file():
-        raise MeshError("mesh file not found", source=where)
+    # the bounded reader's checks: devices, FIFOs, link loops, directories, huge files
+    check_input_file(path, "mesh file", limit_name="data_bytes", error=MeshError, source=where)
     problem = _truncation(path)
     if problem:
         raise MeshError(problem, source=where)
@@ -177,7 +189,9 @@ def load_mesh_file(path: str | Path, *, scale: float = 1.0, source: str | None =
     # OBJ: one geometry per 'o' object and 'g' group (trimesh merges them by material else)
     options = {"split_objects": True, "split_groups": True} if suffix == ".obj" else {}
     try:
-        loaded = trimesh.load(str(path), process=False, **options)
+        with warnings.catch_warnings(), np.errstate(all="ignore"):
+            warnings.simplefilter("ignore")  # overflowing coordinates are refused below
+            loaded = trimesh.load(str(path), process=False, **options)
     except Exception as exc:  # trimesh raises many types for garbage input
         raise MeshError(f"cannot read mesh: {type(exc).__name__}: {exc}", source=where) from None
     parts: list[tuple[str, np.ndarray, np.ndarray, Any]] = []
@@ -278,6 +292,10 @@ def _truncation(path: Path) -> str | None:
     if size < expected:
         return (f"binary STL is truncated: its header announces {count:,} triangles "
                 f"({expected:,} bytes) but the file has {size:,} bytes")
+    bound = limit("mesh_triangles")
+    if count > bound:  # refused before trimesh allocates them
+        return (f"binary STL announces {count:,} triangles, over the limit of {bound:,.0f} "
+                f"(set {LIMITS['mesh_triangles'].env} to raise it)")
     return None
 
 

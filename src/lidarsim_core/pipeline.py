@@ -42,12 +42,13 @@ import numpy as np
 from .backends.base import RayBackend
 from .beam import SubRays, sub_rays_for
 from .builtin_sensors import get_sensor
+from .limits import check_simulation
 from .chunks import ordered_map, piece_size, rotate, split_range, to_body, worker_threads
 from .config_io import validate_model
 from .cull import PulseCuller
 from .datasheet import SensorDatasheet
 from .guard import check_sensor_outside, guard_components, interrupt_behind
-from .errors import ConfigError, LidarsimError, PluginError
+from .errors import ConfigError, LidarsimError, MeshError, PluginError
 from .materials import Material, MaterialTable, material_library, part_materials
 from .mesh import Mesh, load_mesh_file
 from .units import warn_about_units
@@ -152,6 +153,7 @@ class Simulation:
         self.part_names = [f"{t.name}/{p}" for t in self.targets for p in t.mesh.part_names]
         warn_about_units(self)  # a mesh in millimetres: a warning that suggests 'scale'
         self._setup_measurement(scenario)
+        check_simulation(self)  # the resource budget, before any ray is generated
         #: Plan for skipping pulses that cannot reach a target (None: every pulse is cast).
         self.culler: PulseCuller | None = PulseCuller.for_simulation(self)
         # third-party components that fail mid-run are reported with their name
@@ -238,11 +240,15 @@ class Simulation:
                                  field=f"{field}.model")
         model = model_cls.from_config(cfg.options, source=scenario.source,
                                       field=f"{field}.options")
-        mesh = model.mesh()
-        if cfg.scale != 1.0:
-            mesh = Mesh.from_arrays(mesh.vertices * cfg.scale, mesh.faces, mesh.face_part,
-                                    mesh.part_names, name=mesh.name,
-                                    part_materials=mesh.part_materials)
+        try:  # a model's options or the scale can make an unusable mesh: name the field
+            mesh = model.mesh()
+            if cfg.scale != 1.0:
+                mesh = Mesh.from_arrays(mesh.vertices * cfg.scale, mesh.faces, mesh.face_part,
+                                        mesh.part_names, name=mesh.name,
+                                        part_materials=mesh.part_materials)
+        except MeshError as exc:  # a procedural model reads no file: the scenario is to blame
+            raise MeshError(f"model '{cfg.model}': {exc.message}", source=scenario.source,
+                            field=field) from None
         return mesh
 
     # ---- running ------------------------------------------------------------------------

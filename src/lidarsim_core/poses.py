@@ -47,11 +47,7 @@ class PoseConfig(BaseModel):
     @field_validator("euler_sequence")
     @classmethod
     def _sequence(cls, value: str) -> str:
-        if len(value) != 3 or not (value.islower() or value.isupper()) or \
-                not set(value.lower()) <= _VALID_SEQ:
-            raise ValueError("euler_sequence must be three of x/y/z, all lower case (extrinsic) "
-                             "or all upper case (intrinsic), e.g. 'xyz'")
-        return value
+        return check_euler_sequence(value)
 
     @model_validator(mode="after")
     def _one_rotation(self) -> "PoseConfig":
@@ -73,6 +69,19 @@ class PoseConfig(BaseModel):
         """The configured pose as a single-element :class:`Poses`."""
         return Poses(np.asarray(self.position_m, dtype=np.float64)[None, :],
                      Rotation.concatenate([self.rotation()]))
+
+
+def check_euler_sequence(value: str) -> str:
+    """``value`` if SciPy accepts it as an Euler sequence, else a ValueError saying why."""
+    if len(value) != 3 or not (value.islower() or value.isupper()) or \
+            not set(value.lower()) <= _VALID_SEQ:
+        raise ValueError("euler_sequence must be three of x/y/z, all lower case (extrinsic) "
+                         "or all upper case (intrinsic), e.g. 'xyz'")
+    low = value.lower()
+    if low[0] == low[1] or low[1] == low[2]:
+        raise ValueError(f"euler_sequence '{value}' repeats an axis in consecutive rotations "
+                         "(they would merge into one); e.g. 'xyz' or 'zxz'")
+    return value
 
 
 @dataclass(frozen=True)

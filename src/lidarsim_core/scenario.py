@@ -31,6 +31,7 @@ from pydantic import BaseModel, ConfigDict, Field, PrivateAttr, field_validator,
 
 from .beam import BeamConfig
 from .config_io import read_config_file, validate_model
+from .limits import MAX_SEED, LIMITS, limit
 from .poses import PoseConfig
 from .radiometry import DetectionConfig
 from .returns import ReturnsConfig
@@ -155,13 +156,22 @@ class ScanConfig(_Strict):
         False, description="Add columns x_body, y_body, z_body: each noiseless point in its "
                            "target's body frame at its own timestamp (the mesh's frame).")
 
+    @field_validator("frames")
+    @classmethod
+    def _frames_within_budget(cls, value: int) -> int:
+        _check_frame_count(value, "frames")
+        return value
+
     @model_validator(mode="after")
     def _sequence_timing(self) -> "ScanConfig":
         if self.frame_period_s is not None and self.frame_rate_hz is not None:
             raise ValueError("give either frame_period_s or frame_rate_hz, not both")
         if self.sequence_duration_s is not None:
-            # frames whose start lies in [start_s, start_s + sequence_duration_s)
-            count = max(1, math.ceil(self.sequence_duration_s / self.period_s - 1e-9))
+            # frames whose start lies in [start_s, start_s + sequence_duration_s), counted
+            # in floating point first: the ratio of two valid times can be astronomical
+            ratio = self.sequence_duration_s / self.period_s
+            _check_frame_count(ratio, "sequence_duration_s / frame period")
+            count = max(1, math.ceil(ratio - 1e-9))
             if "frames" in self.model_fields_set and self.frames != count:
                 raise ValueError(f"frames ({self.frames}) disagrees with sequence_duration_s "
                                  f"({self.sequence_duration_s:g} s = {count} frames); give one")
@@ -184,6 +194,14 @@ class ScanConfig(_Strict):
         return t0, t0 + self.duration_s
 
 
+def _check_frame_count(frames: float, what: str) -> None:
+    # a ValueError, so pydantic reports it with the field like any other range error
+    bound = limit("frames")
+    if not frames <= bound:
+        raise ValueError(f"{what} gives {frames:.6g} frames, over the limit of {bound:,.0f} "
+                         f"(set {LIMITS['frames'].env} to raise it)")
+
+
 #: Sensor fields of the measurement model that are absent (None) in the seed paper's model.
 _REALISM_SENSOR_FIELDS = ("beam", "detection", "returns", "multipath", "receiver")
 
@@ -191,7 +209,8 @@ _REALISM_SENSOR_FIELDS = ("beam", "detection", "returns", "multipath", "receiver
 class Scenario(_Strict):
     """A complete simulation set-up."""
 
-    seed: int = Field(0, ge=0, description="Seed of every random number (noise).")
+    seed: int = Field(0, ge=0, le=MAX_SEED,
+                      description="Seed of every random number (noise), 0 to 2^64 - 1.")
     sensor: SensorConfig
     targets: list[TargetConfig] = Field(min_length=1)
     scan: ScanConfig
@@ -271,7 +290,7 @@ class Scenario(_Strict):
         """A validated copy with top-level fields replaced (keeps the source file)."""
         data = self.model_dump()
         data.update(changes)
-        new = type(self).model_validate(data)
+        new = validate_model(type(self), data, source=self.source)  # one line, not a raw error
         new._source = self._source
         return new
 

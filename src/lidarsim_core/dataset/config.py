@@ -27,12 +27,13 @@ import copy
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 from ..config_io import read_config_file, validate_model
 from ..errors import ConfigError
+from ..limits import MAX_SEED
 from ..scenario import Scenario, scenario_from_dict
 
 SPLIT_NAMES = ("train", "val", "test")
@@ -40,7 +41,7 @@ _NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
 class SequenceSpec(_Strict):
@@ -48,8 +49,9 @@ class SequenceSpec(_Strict):
 
     scenario: Path = Field(description="Scenario file, relative to the dataset file.")
     name: str | None = Field(None, description="Sequence name (default: the scenario's stem).")
-    seed: int | None = Field(None, ge=0, description="Override the scenario's seed.")
-    seeds: list[int] | None = Field(None, min_length=1,
+    seed: int | None = Field(None, ge=0, le=MAX_SEED,
+                             description="Override the scenario's seed.")
+    seeds: list[Annotated[int, Field(ge=0, le=MAX_SEED)]] | None = Field(None, min_length=1,
                                     description="One sequence per seed (name gets _s<seed>).")
     frames: int | None = Field(None, ge=1, description="Override scan.frames.")
     set: dict[str, Any] = Field(default_factory=dict,
@@ -159,7 +161,21 @@ def scenario_variant(raw: dict[str, Any], *, source: str | Path | None, seed: in
             raise ConfigError("scan must be a mapping", source=source, field="scan")
         scan["frames"] = frames
         scan.pop("sequence_duration_s", None)
-    return scenario_from_dict(data, source=source)
+    try:
+        return scenario_from_dict(data, source=source)
+    except ConfigError as exc:
+        # a value the dataset file set is the dataset file's mistake: name it and its field
+        entry = field.rsplit(".", 1)[0] if field.endswith(".set") else None
+        blamed = {path: f"{field}.{path}" for path in (updates or {})}
+        if seed is not None and entry is not None:
+            blamed["seed"] = f"{entry}.seed"
+        if frames is not None and entry is not None:
+            blamed["scan.frames"] = f"{entry}.frames"
+        bad = exc.field or ""
+        for path, where_field in blamed.items():
+            if bad == path or bad.startswith(path + ".") or path.startswith(bad + ".") and bad:
+                raise ConfigError(exc.message, source=where, field=where_field) from None
+        raise
 
 
 def is_dataset_file(data: dict[str, Any]) -> bool:

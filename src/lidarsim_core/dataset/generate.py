@@ -18,6 +18,8 @@ bit whether or not runs were interrupted on the way.
 from __future__ import annotations
 
 import json
+import os
+import shutil
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterator
@@ -124,6 +126,71 @@ def _check_directory(root: Path, manifest: dict[str, Any] | None) -> None:
         raise OutputError(f"directory is not empty and holds no lidarsim dataset "
                           f"({', '.join(sorted(foreign)[:3])}...); choose an empty or new "
                           "--out directory", source=root)
+
+
+def check_dataset_dir(root: Path) -> None:
+    """Refuse an output directory that cannot be a dataset before anything is created: a
+    file, a name too long, or a place (the directory, or its nearest existing parent) that
+    is read-only or not writable."""
+    from ..guard import describe_os_error
+
+    try:
+        if root.exists() and not root.is_dir():
+            raise OutputError("--out must be a directory", source=root)
+        place = root
+        while not place.exists():
+            place = place.parent
+    except OSError as exc:
+        raise OutputError(f"cannot use this directory: {describe_os_error(exc)}",
+                          source=root) from None
+    if not place.is_dir():
+        raise OutputError(f"a parent of the directory is a file: {place}", source=root)
+    try:
+        name_max = os.pathconf(place, "PC_NAME_MAX")
+    except (OSError, ValueError):
+        name_max = 255
+    for part in root.relative_to(place).parts if place != root else ():
+        if len(os.fsencode(part)) > name_max:
+            raise OutputError(f"directory name too long: {len(os.fsencode(part))} bytes, and "
+                              f"this file system allows {name_max}", source=root)
+    try:
+        read_only = bool(os.statvfs(place).f_flag & os.ST_RDONLY)
+    except (OSError, AttributeError):
+        read_only = False
+    if read_only:
+        raise OutputError(f"{place} is on a read-only file system", source=root)
+    if not os.access(place, os.W_OK | os.X_OK):
+        raise OutputError(f"{place} is not writable", source=root)
+
+
+def validate_sequences(plan: DatasetPlan) -> None:
+    """Build every sequence's simulation from the user's files (meshes, datasheets,
+    trajectories, the resource budget) before the dataset directory is touched.
+
+    Sequences that differ only by seed share one check.
+    """
+    from ..pipeline import Simulation
+
+    seen: set[str] = set()
+    for seq in plan.sequences:
+        data = seq.scenario.model_dump(mode="json")
+        data.pop("seed", None)
+        key = f"{seq.scenario.source}|{json.dumps(data, sort_keys=True)}"
+        if key in seen:
+            continue
+        seen.add(key)
+        Simulation(seq.scenario)
+
+
+def remove_created(root: Path, before: set[str]) -> None:
+    """Delete what a failed first run created in ``root`` (everything not in ``before``,
+    except the lock, which its holder removes)."""
+    for name in set(os.listdir(root)) - before - {LOCK}:
+        path = root / name
+        if path.is_dir() and not path.is_symlink():
+            shutil.rmtree(path, ignore_errors=True)
+        else:
+            path.unlink(missing_ok=True)
 
 
 def _refuse(root: Path, lines: list[str]) -> None:
@@ -306,27 +373,49 @@ def generate_dataset(source: Scenario | str | Path, out: str | Path, *,
     if not exporter.suffixes:
         raise OutputError(f"exporter '{name}' declares no file suffix", field="format")
     suffix = exporter.suffixes[0]
-    if root.exists() and not root.is_dir():
-        raise OutputError("--out must be a directory", source=root)
+    # everything is checked before anything is created: the output directory, then every
+    # sequence built once from the user's own files (errors name them, not the copies)
+    check_dataset_dir(root)
+    validate_sequences(plan)
+    existed = root.exists()
+    before = set(os.listdir(root)) if existed else set()
+    if existed and not (root / MANIFEST).exists() and not (root / LOCK).exists():
+        _check_directory(root, None)  # a foreign directory is refused before the lock
     root.mkdir(parents=True, exist_ok=True)
+    first_run = False
     with dataset_lock(root):
         manifest = read_manifest(root / MANIFEST)
-        _check_directory(root, manifest)
-        copier = InputCopier(root)
-        sequences = _normalise(plan, root, copier)
-        if manifest is not None:
-            lines = _scenario_differences(root, sequences, manifest)
-            if lines:
-                copier.forget_created()
-                _refuse(root, lines)
+        first_run = manifest is None
         try:
-            return _run(plan, root, sequences, exporter, manifest, suffix, workers=workers,
-                        scheduler=scheduler, quiet=quiet, verify=verify,
-                        spool_memory=spool_memory)
+            _check_directory(root, manifest)
+            copier = InputCopier(root)
+            sequences = _normalise(plan, root, copier)
+            if manifest is not None:
+                lines = _scenario_differences(root, sequences, manifest)
+                if lines:
+                    copier.forget_created()
+                    _refuse(root, lines)
+            try:
+                return _run(plan, root, sequences, exporter, manifest, suffix, workers=workers,
+                            scheduler=scheduler, quiet=quiet, verify=verify,
+                            spool_memory=spool_memory)
+            finally:
+                for seq in sequences:
+                    if seq.poses is not None:
+                        seq.poses.close()
+        except Exception:
+            # a failed first run leaves the directory as it found it (an interrupted one
+            # keeps its frames: the next run resumes)
+            if first_run:
+                remove_created(root, before)
+            raise
         finally:
-            for seq in sequences:
-                if seq.poses is not None:
-                    seq.poses.close()
+            if first_run and not existed and not (root / MANIFEST).exists() and \
+                    set(os.listdir(root)) <= {LOCK}:
+                (root / LOCK).unlink(missing_ok=True)
+                root.rmdir()
+            elif LOCK not in before and not (root / MANIFEST).exists():
+                (root / LOCK).unlink(missing_ok=True)
 
 
 def _run(plan: DatasetPlan, root: Path, sequences: list[_Sequence], exporter: Any,

@@ -11,6 +11,7 @@ writing it needs constant memory whatever the number of frames.
 from __future__ import annotations
 
 import json
+import os
 from pathlib import Path
 from typing import IO, Any, Callable, Iterator
 
@@ -26,9 +27,14 @@ SEED_SCHEME = ("Noise of ray k in frame f of a sequence with seed s is drawn fro
 
 def read_manifest(path: Path) -> dict[str, Any] | None:
     """The manifest at ``path``, or ``None`` if there is none (or it is unreadable)."""
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+    from ..config_io import read_bytes_file
+    from ..errors import UserInputError
+
+    if not os.path.lexists(path):
+        return None
+    try:  # bounded: a FIFO or device named manifest.json must not block or fill memory
+        data = json.loads(read_bytes_file(path, "manifest", limit_name="data_bytes"))
+    except (UserInputError, UnicodeDecodeError, RecursionError, json.JSONDecodeError):
         return None
     return data if isinstance(data, dict) and data.get("format") == MANIFEST_FORMAT else None
 

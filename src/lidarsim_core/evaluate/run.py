@@ -27,7 +27,7 @@ from .base import EstimationFailed, FrameInput, PoseEstimate, PoseEstimator
 from .extras import require
 from .data import (SequenceData, frame_record_name, load_json, open_dataset, read_frame_columns,
                    safe_name)
-from .metrics import METRICS, pose_errors
+from .metrics import pose_errors
 from .symmetry import Symmetry, SymmetryGroup
 
 CONFIG_FORMAT = "lidarsim-evaluation"

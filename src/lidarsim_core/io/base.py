@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any, ClassVar, Iterator
 
 from ..components import Component
-from ..errors import OutputError
+from ..errors import OutputError, UserInputError
 
 if TYPE_CHECKING:
     from ..pointcloud import PointCloud
@@ -73,7 +73,7 @@ def atomic_output(path: str | Path, *, overwrite: bool = True) -> Iterator[IO[by
         raise OutputError("output path is a directory", source=path)
     if not parent.is_dir():
         raise OutputError(f"output directory does not exist: {parent}", source=path)
-    if path.exists() and not overwrite:
+    if os.path.lexists(path) and not overwrite:  # a symbolic link, even a looping one, too
         raise OutputError("output file exists (use --overwrite to replace it)", source=path)
     tmp: Path | None = parent / f".{path.name}.{secrets.token_hex(6)}.part"
     try:
@@ -94,12 +94,20 @@ def atomic_output(path: str | Path, *, overwrite: bool = True) -> Iterator[IO[by
             stream.flush()
             os.fsync(stream.fileno())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         if tmp is not None:
             try:
                 os.unlink(tmp)
             except FileNotFoundError:
                 pass
+        if isinstance(exc, UserInputError) and exc.source is None:
+            # an exporter's complaint (a column that does not fit the format) names the file
+            raise type(exc)(exc.message, source=path, field=exc.field) from None
+        if isinstance(exc, OSError) and not isinstance(exc, OutputError):
+            # ENOSPC, EDQUOT, EIO...: one line naming the file, nothing left behind
+            from ..guard import describe_os_error
+
+            raise OutputError(f"cannot write: {describe_os_error(exc)}", source=path) from exc
         raise
 
 

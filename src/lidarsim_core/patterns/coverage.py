@@ -165,6 +165,16 @@ def fov_coverage(pattern: ScanPattern, duration_s: float, cell_deg: float = 0.5,
         raise ValueError("duration_s must be > 0")
     if not cell_deg > 0 or not bin_deg > 0:
         raise ValueError("cell_deg and bin_deg must be > 0")
+    if not (cell_deg <= 360 and bin_deg <= 180):  # larger cells overflow the grid's size
+        raise ValueError("cell_deg must be at most 360 and bin_deg at most 180")
+    # the resource budget, before the grid and the bins are allocated
+    from ..limits import check, check_pattern_window, coverage_cells
+
+    check("profile_bins", 180.0 / bin_deg, what=f"bin_deg {bin_deg:g}", field="bin_deg")
+    check("coverage_cells", coverage_cells(pattern.sensor, cell_deg), field="cell_deg",
+          what=f"cell_deg {cell_deg:g} over a {pattern.sensor.fov_h_deg:g}° field of view")
+    check_pattern_window(pattern.rate_hz, t_start_s, duration_s, budget="rays_per_frame",
+                         duration_field="duration_s", start_field="t_start_s")
     grid = _Grid(pattern, cell_deg)
     hit = np.zeros(grid.nu * grid.nv, dtype=bool)
     edges = np.arange(0.0, 180.0 + bin_deg, bin_deg)

@@ -106,9 +106,13 @@ def read_pattern_table(path: str | Path, fmt: TableFormat = "auto") -> PatternTa
     PatternFileError
         Naming the file, the column and the line of the first problem.
     """
+    from ..config_io import check_input_file
+
     path = Path(path)
-    if not path.is_file():
-        raise PatternFileError("pattern file not found", source=path)
+    # the bounded reader's checks: missing, devices, FIFOs, link loops, directories, size
+    check_input_file(path, "pattern file", error=PatternFileError,
+                     limit_name="data_bytes" if path.suffix.lower() == ".npy" else
+                     "config_bytes")
     if path.suffix.lower() == ".npy":
         if fmt == "livox":
             raise PatternFileError("Livox scan-mode files are CSV, not NPY", source=path)

@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import LidarsimError, OutputError
+from ..errors import LidarsimError
 from ..io.base import write_text_atomic
 from .run import Run, load_run
 

@@ -111,8 +111,13 @@ CLOUD_READERS = (".npz", ".ply", ".pcd", ".las", ".laz", ".csv")
 
 
 def read_run_clouds(directory: Path) -> dict[Path, PointCloud]:
-    """Every lidarsim cloud in ``directory``, most precise format first; files that are not
-    lidarsim clouds are skipped."""
+    """Every lidarsim cloud in ``directory``, most precise format first.
+
+    Files that are not lidarsim clouds are skipped; an ``.npz`` that says it is one (it holds
+    ``frame_json``) but cannot be read is an error naming it, not a silent gap in the run.
+    """
+    from ..config_io import check_input_file
+
     order = list(CLOUD_READERS)
     paths = sorted((p for p in directory.iterdir()
                     if p.is_file() and p.suffix.lower() in CLOUD_READERS),
@@ -121,10 +126,16 @@ def read_run_clouds(directory: Path) -> dict[Path, PointCloud]:
     for path in paths:
         if not _is_lidarsim_cloud(path):
             continue
+        check_input_file(path, "point cloud", limit_name="data_bytes")
         try:
             clouds[path] = read(path)
-        except (ConfigError, ImportError, OSError, ValueError):
-            continue  # not a lidarsim cloud (or LAS without laspy): not part of the run
+        except (ConfigError, ImportError, OSError, ValueError, KeyError, TypeError,
+                AttributeError, EOFError, zipfile.BadZipFile) as exc:
+            if path.suffix.lower() != ".npz":
+                continue  # not a lidarsim cloud (or LAS without laspy): not part of the run
+            raise ConfigError(f"cannot read this lidarsim cloud: {type(exc).__name__}: "
+                              f"{' '.join(str(exc).split())}", source=path,
+                              field="frame_json") from None
     return clouds
 
 

@@ -38,6 +38,7 @@ from scipy.spatial.transform import Rotation
 
 from ..components import ComponentOptions
 from ..config_io import read_config_file, read_text_file, validate_model
+from ..limits import check
 from ..errors import ConfigError
 from ..hookspecs import hookimpl
 from ..posing import PoseMatrices, quat_matrices, quat_multiply
@@ -104,6 +105,7 @@ def _numbers(cells: dict[str, str], cols: tuple[str, ...], path: Path, line: int
 def _read_csv(path: Path) -> tuple[list[Keyframe], list[int]]:
     """Keyframes of a CSV file and the line number of each."""
     text = read_text_file(path, "keyframe file")
+    check("keyframe_rows", text.count("\n"), what="the file's lines", source=path)
     reader = csv.DictReader(io.StringIO(text, newline=""))
     header = [h.strip() for h in (reader.fieldnames or [])]
     missing = [c for c in _CSV_POSITION if c not in header]
