@@ -31,12 +31,12 @@ pytestmark = pytest.mark.skipif(sys.platform != "linux", reason="the fuzz worker
 LONG = "LIDARSIM_FUZZ_EXAMPLES" in os.environ
 EXAMPLES = int(os.environ.get("LIDARSIM_FUZZ_EXAMPLES", "0")) or None
 
-#: Share of the CI budget (40 examples) each strategy gets.
+#: Share of the CI budget (100 examples) each strategy gets.
 SHARE = {"scenarios": 2.0, "options": 1.0, "environment": 0.4, "datasets": 0.6}
 
 
 def _settings(name: str) -> settings:
-    return settings(max_examples=EXAMPLES or int(40 * SHARE[name]), deadline=None,
+    return settings(max_examples=EXAMPLES or int(100 * SHARE[name]), deadline=None,
                     database=None, derandomize=not LONG, print_blob=True,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
                                            HealthCheck.filter_too_much])
