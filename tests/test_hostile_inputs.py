@@ -412,7 +412,8 @@ def test_corrupt_frame_json_in_a_run_is_named(tmp_path, capsys):
     cloud = dict(np.load(tmp_path / "run" / "c.npz", allow_pickle=False))
     cloud["frame_json"] = np.array('{"frame": 0, broken')
     np.savez(tmp_path / "run" / "c.npz", **cloud)
-    refused(["report", "run", "--no-3d"], capsys, "c.npz", "frame_json", "JSONDecodeError")
+    refused(["report", "run", "--no-3d"], capsys, "c.npz", "frame_json", "cannot read",
+            "Expecting property name")  # the JSON parser's own words
 
 
 # ---- dataset -------------------------------------------------------------------------------
@@ -452,7 +453,7 @@ def test_failed_first_dataset_run_leaves_nothing(tmp_path, capsys, monkeypatch):
     def fail(*args, **kwargs):
         raise OSError(errno.EIO, "Input/output error", str(tmp_path / "x"))
 
-    monkeypatch.setattr(executors, "run_frame_job", fail)
+    monkeypatch.setattr(executors, "simulate_frame_job", fail)  # the serial loop's first step
     path = scenario(tmp_path)
     code, _, err = run(["dataset", path, "--out", "ds", "-q"], capsys)
     assert code == 2 and len(err.strip().splitlines()) == 1, err

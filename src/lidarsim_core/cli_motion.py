@@ -48,7 +48,7 @@ def _poses(path: Path, out: Path, clouds: str | None, frame: int | None,
     if clouds is not None and n_frames > 1 and frame is None and "{frame" not in clouds:
         raise OutputError("--clouds needs '{frame}' in it for a sequence "
                           "(e.g. cloud_{frame:04d}.ply)", source=clouds)
-    check_file(out, overwrite=overwrite, what="pose file")  # lidarsim_core.outputs
+    check_file(out, overwrite=overwrite)  # the one overwrite policy (lidarsim_core.outputs)
     indices = [frame] if frame is not None else list(range(n_frames))
     # the same template rules as --out: only {frame}, with a zero-padded width
     names = [str(p) for p in frame_paths(clouds, indices)] if clouds is not None else None

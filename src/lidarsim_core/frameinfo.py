@@ -58,7 +58,7 @@ def frame_infos(sim: "Simulation", frames: Sequence[int]) -> list[FrameInfo]:
     names = [t.name for t in sim.targets]
     infos = []
     for i, (frame, (t0, t1)) in enumerate(zip(frames, intervals)):
-        k0, k1 = sim.pattern.index_range(t0, t1)
+        k0, k1 = sim.pattern.frame_index_range(t0, t1)  # a flash LiDAR's frame: one flash
         a, b = 2 * i, 2 * i + 1
         infos.append(FrameInfo(
             frame=frame, t_start=t0, t_end=t1, sensor=sim.sensor.name,

@@ -133,6 +133,9 @@ def read_run_clouds(directory: Path) -> dict[Path, PointCloud]:
                 AttributeError, EOFError, zipfile.BadZipFile) as exc:
             if path.suffix.lower() != ".npz":
                 continue  # not a lidarsim cloud (or LAS without laspy): not part of the run
+            if isinstance(exc, ConfigError):  # the reader's own line already names the file
+                raise ConfigError(f"cannot read this lidarsim cloud: {exc.message}",
+                                  source=path, field="frame_json") from None
             raise ConfigError(f"cannot read this lidarsim cloud: {type(exc).__name__}: "
                               f"{' '.join(str(exc).split())}", source=path,
                               field="frame_json") from None
