@@ -203,3 +203,33 @@ def test_evaluate_refuses_a_bag_dataset_in_one_line(dataset):
     _, out = dataset
     with pytest.raises(ConfigError, match="ROS 2 bags"):
         open_dataset(out)
+
+
+def test_ctrl_c_keeps_finished_bags_only_and_a_rerun_completes_them(dataset, tmp_path,
+                                                                      monkeypatch):
+    import lidarsim_core.dataset.generate as generate
+
+    root, full = dataset
+    reference = {p.relative_to(full): _sha(p) for p in full.rglob("*") if p.is_file()}
+    real = generate.write_sequence_bag
+    calls = []
+
+    def interrupted(sim, frames, path, *, livox, on_frame=None):
+        calls.append(path)
+        if len(calls) == 2:  # the second sequence: interrupted after its first frame
+            def stop(points):
+                raise KeyboardInterrupt
+            return real(sim, frames, path, livox=livox, on_frame=stop)
+        return real(sim, frames, path, livox=livox, on_frame=on_frame)
+
+    monkeypatch.setattr(generate, "write_sequence_bag", interrupted)
+    out = tmp_path / "ds"
+    with pytest.raises(KeyboardInterrupt, match="1 of 2 sequence bags are complete"):
+        generate_dataset(root / "dataset.yaml", out)
+    assert (out / "sequences/near/bag.mcap").is_file()
+    far = out / "sequences/far"
+    assert sorted(p.name for p in far.iterdir()) == ["poses.json", "scenario.yaml"]
+    monkeypatch.setattr(generate, "write_sequence_bag", real)
+    result = generate_dataset(root / "dataset.yaml", out)
+    assert (result.frames_written, result.frames_skipped) == (FRAMES["far"], FRAMES["near"])
+    assert {p.relative_to(out): _sha(p) for p in out.rglob("*") if p.is_file()} == reference
