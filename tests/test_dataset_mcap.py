@@ -170,7 +170,13 @@ def test_refusals_come_before_anything_is_created(dataset, tmp_path):
     with pytest.raises(ConfigError, match="unknown option 'colour'"):
         generate_dataset(scene, tmp_path / "c", format="mcap",
                          exporter_options={"colour": True})
-    assert list(tmp_path.iterdir()) == []
+    bad = json.loads(json.dumps(SCENARIO))
+    bad["targets"][1]["name"] = "sensor"
+    (tmp_path / "bad.yaml").write_text(yaml.safe_dump(bad))
+    with pytest.raises(ConfigError, match="'sensor' is also a TF frame") as info:
+        generate_dataset(tmp_path / "bad.yaml", tmp_path / "d", format="mcap")
+    assert info.value.source == str(tmp_path / "bad.yaml")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.yaml"]
 
 
 def test_cli_single_scenario_with_livox(dataset, tmp_path):

@@ -13,12 +13,15 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Any, Callable, Iterable
 
-from ..errors import ConfigError
+import numpy as np
+
+from ..errors import ConfigError, UserInputError
 
 if TYPE_CHECKING:
     from ..pipeline import Simulation
+    from ..scenario import Scenario
 
 #: ``--format`` value that selects bags.
 BAG_FORMAT = "mcap"
@@ -62,6 +65,25 @@ class BagFormat:
         """The exporter entry of the dataset identity."""
         return {"name": self.name, "options": {"livox": self.livox}, "suffix": self.suffixes[0],
                 "provider": "lidarsim-core"}
+
+
+def check_bag_sequences(scenarios: Iterable["Scenario"]) -> None:
+    """Refuse, before anything is created, sequences a bag cannot hold: a target name that is
+    not a ROS topic / TF frame name (or is ``scene`` / ``sensor``), or frames longer than
+    PointCloud2's uint32 ns per-point time field (4.29 s)."""
+    from ..io.rosbag import _check_target_names
+
+    limit_s = np.iinfo(np.uint32).max * 1e-9
+    for scenario in scenarios:
+        try:
+            _check_target_names([target.name for target in scenario.targets])
+        except UserInputError as exc:
+            raise ConfigError(exc.message, source=scenario.source, field=exc.field) from None
+        if scenario.scan.duration_s > limit_s:
+            raise ConfigError(f"a frame of {scenario.scan.duration_s:g} s does not fit "
+                              f"PointCloud2's uint32 ns point time field (at most "
+                              f"{limit_s:.2f} s) with --format mcap", source=scenario.source,
+                              field="scan.duration_s")
 
 
 def write_sequence_bag(sim: "Simulation", frames: int, path: Path, *, livox: bool,

@@ -33,7 +33,8 @@ from ..io.points import DEFAULT_SPOOL_MEMORY
 from ..io.sidecar import frame_is_complete
 from ..plugins import get_registry
 from ..scenario import Scenario, scenario_from_dict
-from .bags import BAG_FORMAT, BAG_NAME, BagFormat, write_sequence_bag
+from .bags import (BAG_FORMAT, BAG_NAME, BagFormat, check_bag_sequences,
+                   write_sequence_bag)
 from .config import DatasetPlan, SequencePlan, load_plan, scenario_variant
 from .executors import run_dask, run_serial
 from .frames import FrameJob
@@ -410,6 +411,8 @@ def generate_dataset(source: Scenario | str | Path, out: str | Path, *,
     # sequence built once from the user's own files (errors name them, not the copies)
     check_dataset_dir(root)
     validate_sequences(plan)
+    if isinstance(exporter, BagFormat):
+        check_bag_sequences(seq.scenario for seq in plan.sequences)
     existed = root.exists()
     before = set(os.listdir(root)) if existed else set()
     if existed and not (root / MANIFEST).exists() and not (root / LOCK).exists():
