@@ -11,6 +11,9 @@ A run (see :func:`generate_dataset`):
    next run);
 5. writes the final manifest with every frame's checksum.
 
+With ``format="mcap"`` steps 4 and 5 work per sequence instead of per frame: one ROS 2 bag
+each (:mod:`lidarsim_core.dataset.bags`).
+
 Running the same command again therefore resumes, and a finished directory is the same to the
 bit whether or not runs were interrupted on the way.
 """
