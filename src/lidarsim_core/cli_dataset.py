@@ -18,7 +18,8 @@ def dataset(source: Path = typer.Argument(..., help="Scenario file, or a dataset
             frames: Optional[int] = typer.Option(None, min=1, help="Frames per sequence "
                                                  "(default: the scenario's scan.frames)."),
             fmt: Optional[str] = typer.Option(None, "--format", help="Exporter: ply (default), "
-                                              "las, laz, pcd, npz, csv, or a plugin's."),
+                                              "las, laz, pcd, npz, csv, a plugin's, or mcap "
+                                              "(one ROS 2 bag per sequence)."),
             workers: Optional[int] = typer.Option(None, min=1, help="Run on a local Dask "
                                                   "cluster of this many processes."),
             scheduler: Optional[str] = typer.Option(None, help="Run on the Dask cluster at "
@@ -27,13 +28,17 @@ def dataset(source: Path = typer.Argument(..., help="Scenario file, or a dataset
                                         "them."),
             quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar, no "
                                        "summary."),
+            livox: bool = typer.Option(False, "--livox", help="With --format mcap: also write "
+                                       "livox_ros_driver2/msg/CustomMsg on /livox/lidar."),
             ) -> None:
     """Generate a dataset: one file per frame, poses, manifest with checksums, splits."""
-    run_guarded(lambda: _dataset(source, out, frames, fmt, workers, scheduler, verify, quiet))
+    run_guarded(lambda: _dataset(source, out, frames, fmt, workers, scheduler, verify, quiet,
+                                  livox))
 
 
 def _dataset(source: Path, out: Path, frames: int | None, fmt: str | None,
-             workers: int | None, scheduler: str | None, verify: bool, quiet: bool) -> None:
+             workers: int | None, scheduler: str | None, verify: bool, quiet: bool,
+             livox: bool = False) -> None:
     from .dataset import generate_dataset
     from .errors import ConfigError
     from .limits import check_frames
@@ -43,7 +48,8 @@ def _dataset(source: Path, out: Path, frames: int | None, fmt: str | None,
     if frames is not None:
         check_frames(frames, source=None, field="--frames")
     result = generate_dataset(source, out, frames=frames, format=fmt, workers=workers,
-                              scheduler=scheduler, quiet=quiet, verify=verify)
+                              scheduler=scheduler, quiet=quiet, verify=verify,
+                              livox=livox)
     if quiet:
         return
     rate = result.frames_written / result.elapsed_s if result.elapsed_s > 0 else 0.0

@@ -11,6 +11,9 @@ A run (see :func:`generate_dataset`):
    next run);
 5. writes the final manifest with every frame's checksum.
 
+With ``format="mcap"`` steps 4 and 5 work per sequence instead of per frame: one ROS 2 bag
+each (:mod:`lidarsim_core.dataset.bags`).
+
 Running the same command again therefore resumes, and a finished directory is the same to the
 bit whether or not runs were interrupted on the way.
 """
@@ -27,12 +30,14 @@ from typing import Any, Iterator
 import numpy as np
 import yaml
 
-from ..errors import OutputError
+from ..errors import ConfigError, OutputError
 from ..io.base import atomic_output, write_text_atomic
 from ..io.points import DEFAULT_SPOOL_MEMORY
 from ..io.sidecar import frame_is_complete
 from ..plugins import get_registry
 from ..scenario import Scenario, scenario_from_dict
+from .bags import (BAG_FORMAT, BAG_NAME, BagFormat, check_bag_sequences,
+                   write_sequence_bag)
 from .config import DatasetPlan, SequencePlan, load_plan, scenario_variant
 from .executors import run_dask, run_serial
 from .frames import FrameJob
@@ -95,6 +100,7 @@ class _Sequence:
     identity: dict[str, Any] | None = None
     poses: PosesFile | None = None
     group: str = ""
+    sim: Any = None
 
     @property
     def copy_path(self) -> Path:
@@ -239,6 +245,12 @@ def _write_text(path: Path, text: str) -> None:
     write_text_atomic(path, text)
 
 
+def _cloud_path(frame: int, suffix: str) -> str:
+    """Where frame ``frame`` of a sequence is, relative to its root: its own file, or the
+    sequence's bag."""
+    return BAG_NAME if suffix == BagFormat.suffixes[0] else frame_relpath(frame, suffix)
+
+
 def _prepare_sequence(seq: _Sequence, suffix: str) -> None:
     from ..pipeline import Simulation
 
@@ -246,7 +258,8 @@ def _prepare_sequence(seq: _Sequence, suffix: str) -> None:
     seq.scenario = scenario_from_dict(seq.data, source=seq.copy_path)
     sim = Simulation(seq.scenario)
     seq.frames = seq.scenario.scan.frames
-    seq.poses = PosesFile(sim, seq.frames, lambda f: frame_relpath(f, suffix))
+    seq.poses = PosesFile(sim, seq.frames, lambda f: _cloud_path(f, suffix))
+    seq.sim = sim
     seq.identity = sequence_identity(seq.plan.name, sim, get_registry(), seq.poses.sha256)
     seq.group = seq.plan.group or trajectory_key(seq.scenario)
 
@@ -276,8 +289,10 @@ def _write_split_lists(root: Path, sequences: list[_Sequence], assignment: dict[
                 if seq.plan.name not in names:
                     continue
                 rel = seq.root.relative_to(root).as_posix()
-                for frame in range(seq.frames):
-                    stream.write(f"{rel}/{frame_relpath(frame, suffix)}\n".encode("utf-8"))
+                # one line per frame file, or per bag
+                paths = sorted({_cloud_path(frame, suffix) for frame in range(seq.frames)})
+                for path in paths:
+                    stream.write(f"{rel}/{path}\n".encode("utf-8"))
 
 
 def _dataset_copy(plan: DatasetPlan, root: Path, sequences: list[_Sequence],
@@ -299,12 +314,17 @@ def _dataset_copy(plan: DatasetPlan, root: Path, sequences: list[_Sequence],
     return yaml.safe_dump(data, sort_keys=False)
 
 
-def _sequence_summary(root: Path, seq: _Sequence, split: str | None) -> dict[str, Any]:
+def _sequence_summary(root: Path, seq: _Sequence, split: str | None, bag: bool
+                      ) -> dict[str, Any]:
     rel = seq.root.relative_to(root).as_posix() if seq.root != root else "."
     assert seq.scenario is not None
-    return {"name": seq.plan.name, "root": rel, "scenario": SCENARIO_COPY, "poses": POSES,
-            "frames_dir": FRAMES_DIR, "frame_count": seq.frames, "seed": seq.scenario.seed,
-            "config_hash": seq.scenario.config_hash(), "split": split, "group": seq.group}
+    out = {"name": seq.plan.name, "root": rel, "scenario": SCENARIO_COPY, "poses": POSES,
+           "frames_dir": FRAMES_DIR, "frame_count": seq.frames, "seed": seq.scenario.seed,
+           "config_hash": seq.scenario.config_hash(), "split": split, "group": seq.group}
+    if bag:
+        out["frames_dir"] = None
+        out["bag"] = {"file": BAG_NAME}
+    return out
 
 
 def generate_dataset(source: Scenario | str | Path, out: str | Path, *,
@@ -312,7 +332,8 @@ def generate_dataset(source: Scenario | str | Path, out: str | Path, *,
                      exporter_options: dict[str, Any] | None = None,
                      workers: int | None = None, scheduler: str | None = None,
                      quiet: bool = True, verify: bool = False,
-                     spool_memory: int = DEFAULT_SPOOL_MEMORY) -> DatasetResult:
+                     spool_memory: int = DEFAULT_SPOOL_MEMORY,
+                     livox: bool = False) -> DatasetResult:
     """Generate (or resume, or check) a dataset in ``out``.
 
     Parameters
@@ -325,7 +346,8 @@ def generate_dataset(source: Scenario | str | Path, out: str | Path, *,
         Number of frames of every sequence (default: the scenario's ``scan.frames``).
     format
         Exporter name (default: the dataset file's ``format``, else the format of the dataset
-        already in ``out``, else ``ply``).
+        already in ``out``, else ``ply``), or ``mcap``: one ROS 2 bag per sequence
+        (:mod:`lidarsim_core.dataset.bags`; serial only).
     exporter_options
         Options of the exporter (default: the dataset file's ``exporter_options``, else those
         of the dataset already in ``out``).
@@ -339,6 +361,9 @@ def generate_dataset(source: Scenario | str | Path, out: str | Path, *,
         Recompute the checksum of every finished frame before skipping it.
     spool_memory
         Bytes of a frame's points held in memory before it streams through a temporary file.
+    livox
+        With ``format="mcap"``: also write the Livox ``CustomMsg`` topic (exporter option
+        ``livox``).
 
     Returns
     -------
@@ -368,8 +393,20 @@ def generate_dataset(source: Scenario | str | Path, out: str | Path, *,
         options = config.exporter_options
     else:
         options = previous["options"] if previous and previous["name"] == name else {}
-    exporter = registry.get("exporter", name, source=plan.source, field="format").from_config(
-        options, source=plan.source, field="exporter_options")
+    exporter: Any
+    if livox:
+        if name != BAG_FORMAT:
+            raise ConfigError(f"--livox needs --format mcap (not {name})", field="livox")
+        options = {**options, "livox": True}
+    if name == BAG_FORMAT:
+        if workers is not None or scheduler is not None:
+            raise ConfigError("--format mcap writes each sequence's bag in this process; "
+                              "drop --workers/--scheduler", field="workers")
+        exporter = BagFormat.from_options(options, source=plan.source)
+    else:
+        exporter = registry.get("exporter", name, source=plan.source,
+                                field="format").from_config(options, source=plan.source,
+                                                            field="exporter_options")
     if not exporter.suffixes:
         raise OutputError(f"exporter '{name}' declares no file suffix", field="format")
     suffix = exporter.suffixes[0]
@@ -377,6 +414,8 @@ def generate_dataset(source: Scenario | str | Path, out: str | Path, *,
     # sequence built once from the user's own files (errors name them, not the copies)
     check_dataset_dir(root)
     validate_sequences(plan)
+    if isinstance(exporter, BagFormat):
+        check_bag_sequences(seq.scenario for seq in plan.sequences)
     existed = root.exists()
     before = set(os.listdir(root)) if existed else set()
     if existed and not (root / MANIFEST).exists() and not (root / LOCK).exists():
@@ -423,9 +462,10 @@ def _run(plan: DatasetPlan, root: Path, sequences: list[_Sequence], exporter: An
          scheduler: str | None, quiet: bool, verify: bool, spool_memory: int
          ) -> DatasetResult:
     registry = get_registry()
+    bag = isinstance(exporter, BagFormat)
     for seq in sequences:
         _prepare_sequence(seq, suffix)
-    exp_id = exporter_identity(exporter, registry)
+    exp_id = exporter.identity() if bag else exporter_identity(exporter, registry)
     identity = dataset_identity([s.identity for s in sequences if s.identity], exp_id,
                                 multi=plan.multi, packages=package_versions(exporter.requires))
     if manifest is not None and manifest.get("identity") != identity:
@@ -433,16 +473,21 @@ def _run(plan: DatasetPlan, root: Path, sequences: list[_Sequence], exporter: An
     remove_stale_parts([root, root / INPUTS_DIR, root / SPLITS_DIR] +
                        [d for s in sequences for d in (s.root, s.root / FRAMES_DIR)])
     assignment, split_record = _splits(plan, sequences)
-    summaries = [_sequence_summary(root, s, assignment.get(s.plan.name)) for s in sequences]
+    summaries = [_sequence_summary(root, s, assignment.get(s.plan.name), bag)
+                 for s in sequences]
     write_manifest(root / MANIFEST, identity=identity, sequences=summaries, splits=split_record)
     for seq in sequences:
         assert seq.poses is not None
         seq.poses.save(seq.root / POSES)
-        (seq.root / FRAMES_DIR).mkdir(parents=True, exist_ok=True)
+        if not bag:
+            (seq.root / FRAMES_DIR).mkdir(parents=True, exist_ok=True)
     if plan.multi:
         _write_text(root / DATASET_COPY, _dataset_copy(plan, root, sequences, exp_id))
     if split_record is not None:
         _write_split_lists(root, sequences, assignment, split_record, suffix)
+    if bag:
+        return _run_bags(root, sequences, exporter, identity, summaries, split_record,
+                         quiet=quiet, verify=verify)
 
     done = {s.plan.name: np.array([frame_is_complete(s.root / frame_relpath(f, suffix),
                                                      verify=verify) is not None
@@ -473,6 +518,58 @@ def _run(plan: DatasetPlan, root: Path, sequences: list[_Sequence], exporter: An
                         f"{root} (no partial frame file); rerun the same command to resume"
                         ) from None
     _finish(root, sequences, identity, summaries, split_record, suffix)
+    return DatasetResult(root, total, progress.written, skipped, progress.points,
+                         progress.elapsed)
+
+
+def _bag_record(seq: _Sequence, verify: bool = False) -> dict[str, Any] | None:
+    """The sidecar record of the sequence's bag if it is complete (and holds every frame)."""
+    record = frame_is_complete(seq.root / BAG_NAME, verify=verify)
+    if record is None or record.get("frames") != seq.frames or \
+            len(record.get("points_per_frame", ())) != seq.frames:
+        return None
+    return record
+
+
+def _run_bags(root: Path, sequences: list[_Sequence], exporter: BagFormat,
+              identity: dict[str, Any], summaries: list[dict[str, Any]],
+              splits: dict[str, Any] | None, *, quiet: bool, verify: bool) -> DatasetResult:
+    """Write the bag of every sequence whose bag is not complete, then the final manifest."""
+    done = [_bag_record(seq, verify) is not None for seq in sequences]
+    total = sum(s.frames for s in sequences)
+    skipped = sum(s.frames for s, d in zip(sequences, done) if d)
+    try:
+        with FrameProgress(total - skipped, quiet=quiet, already=skipped) as progress:
+            for seq, finished in zip(sequences, done):
+                if not finished:
+                    write_sequence_bag(seq.sim, seq.frames, seq.root / BAG_NAME,
+                                       livox=exporter.livox, on_frame=progress.frame_done)
+    except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM: say what is kept, and how to go on
+        kept = sum(_bag_record(seq) is not None for seq in sequences)
+        raise type(exc)(f"{kept} of {len(sequences)} sequence bags are complete and kept in "
+                        f"{root} (no partial bag); rerun the same command to resume") from None
+    totals = {"frames": 0, "points": 0, "bytes": 0}
+    for seq, summary in zip(sequences, summaries):
+        record = _bag_record(seq)
+        if record is None:
+            raise OutputError("bag or its sidecar missing after the run", source=seq.root /
+                              BAG_NAME)
+        rel = seq.root.relative_to(root).as_posix()
+        summary["bag"] = {"file": BAG_NAME if rel == "." else f"{rel}/{BAG_NAME}",
+                          "frames": record["frames"], "points": record["points"],
+                          "points_per_frame": record["points_per_frame"],
+                          "bytes": record["bytes"], "sha256": record["sha256"]}
+        totals["frames"] += record["frames"]
+        totals["points"] += record["points"]
+        totals["bytes"] += record["bytes"]
+
+    def frames_of(index: int) -> Iterator[dict[str, Any]]:
+        bag_file = summaries[index]["bag"]["file"]
+        for frame, points in enumerate(summaries[index]["bag"]["points_per_frame"]):
+            yield {"frame": frame, "file": bag_file, "points": points}
+
+    write_manifest(root / MANIFEST, identity=identity, sequences=summaries, splits=splits,
+                   frames_of=frames_of, totals=totals)
     return DatasetResult(root, total, progress.written, skipped, progress.points,
                          progress.elapsed)
 

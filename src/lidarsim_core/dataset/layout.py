@@ -11,6 +11,9 @@ One scenario::
 A dataset file with several sequences puts each under ``DIR/sequences/<name>/`` (same four
 entries) and adds ``DIR/dataset.yaml`` (the expanded dataset file), ``DIR/splits.json`` and
 ``DIR/splits/{train,val,test}.txt`` (one frame path per line, relative to ``DIR``).
+
+With ``--format mcap`` a sequence holds ``bag.mcap`` and its sidecar ``bag.mcap.json`` instead
+of ``frames/`` (:mod:`lidarsim_core.dataset.bags`), and the split lists name the bags.
 """
 
 from __future__ import annotations

@@ -8,6 +8,7 @@ it safe to delete the hidden ``.*.part`` files that a killed run's atomic writes
 from __future__ import annotations
 
 import os
+import shutil
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterable, Iterator
@@ -50,6 +51,9 @@ def remove_stale_parts(directories: Iterable[Path]) -> int:
         if not directory.is_dir():
             continue
         for path in directory.glob(".*.part"):
-            path.unlink(missing_ok=True)
+            if path.is_dir() and not path.is_symlink():  # a bag's working directory
+                shutil.rmtree(path, ignore_errors=True)
+            else:
+                path.unlink(missing_ok=True)
             removed += 1
     return removed

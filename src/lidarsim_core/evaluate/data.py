@@ -158,6 +158,9 @@ def open_dataset(root: str | Path, split: str | None = None) -> tuple[list[Seque
     root = Path(root)
     manifest = _manifest(root)
     fingerprint = hashlib.sha256((root / MANIFEST).read_bytes()).hexdigest()
+    if (manifest.get("identity") or {}).get("exporter", {}).get("name") == "mcap":
+        raise ConfigError("this dataset holds ROS 2 bags (--format mcap); evaluate reads "
+                          "datasets of frame files (e.g. --format npz)", source=root)
     if split is not None:
         if split not in SPLIT_NAMES:
             raise ConfigError(f"unknown split '{split}'; use one of {', '.join(SPLIT_NAMES)}",

@@ -299,8 +299,11 @@ def write_bag(sim: "Simulation", frames: Sequence[int], path: str | Path, *,
     _check_target_names(target_names)
     store = typestore(livox)
     work = parent / f".{path.name}.{secrets.token_hex(6)}.part"
+    # the bag directory inside has a fixed name: rosbag2's metadata record in the MCAP file
+    # names the file after it, so the same frames give the same bytes on every run
+    work.mkdir()
     try:
-        with Writer(work, version=8, storage_plugin=StoragePlugin.MCAP) as writer:
+        with Writer(work / path.stem, version=8, storage_plugin=StoragePlugin.MCAP) as writer:
             def topic(name: str, msgtype: str) -> Any:
                 return writer.add_connection(name, msgtype, typestore=store)
 
@@ -326,7 +329,7 @@ def write_bag(sim: "Simulation", frames: Sequence[int], path: str | Path, *,
                     put(custom, livox_custom_msg(store, cloud))
                 if on_frame is not None:
                     on_frame(f, cloud)
-        files = list(work.glob("*.mcap"))
+        files = list((work / path.stem).glob("*.mcap"))
         if len(files) != 1:
             raise OutputError(f"the bag writer produced {len(files)} MCAP files, expected 1",
                               source=path)
