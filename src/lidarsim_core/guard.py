@@ -172,7 +172,7 @@ def check_sensor_outside(sim: "Simulation", frame: int) -> None:
     The sensor counts as inside when probe rays in 14 directions all hit the target and all
     hit the back (inner) side of a face first, which is only possible from inside a closed,
     outward-oriented surface. Open meshes (a plate) and meshes with some inward faces never
-    trigger it.
+    trigger it. A sensor outside the target's bounding box needs no probe.
 
     Raises
     ------
@@ -191,7 +191,10 @@ def check_sensor_outside(sim: "Simulation", frame: int) -> None:
     for i, target in enumerate(sim.targets):
         poses = target.trajectory.poses_at(times)
         origins = poses.apply_inverse(sensor_at)
+        lo, hi = target.mesh.bounds
         for t, origin in zip(times, origins):
+            if (origin < lo).any() or (origin > hi).any():
+                continue  # outside the bounding box: outside any closed surface, no probe
             hits = sim.backend.cast(target.mesh, np.repeat(origin[None, :], len(dirs), axis=0),
                                     dirs)
             if hits.hit.all() and (np.einsum("ij,ij->i", hits.normal, dirs) > 0).all():
