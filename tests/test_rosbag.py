@@ -166,6 +166,10 @@ def test_existing_bag_is_refused_and_nothing_is_left_on_error(run, tmp_path):
     scenario, bag, _ = run
     res = _run_cli("simulate", str(scenario), "--out", str(bag))
     assert res.returncode == 2 and "exists" in res.stderr
-    res = _run_cli("simulate", str(scenario), "--out", str(tmp_path / "nodir" / "a.mcap"))
-    assert res.returncode == 2 and "does not exist" in res.stderr
-    assert list(tmp_path.iterdir()) == []
+    (tmp_path / "blocker").write_text("a file, not a folder")
+    res = _run_cli("simulate", str(scenario), "--out", str(tmp_path / "blocker" / "a.mcap"))
+    assert res.returncode == 2 and "blocker is a file" in res.stderr
+    assert [p.name for p in tmp_path.iterdir()] == ["blocker"]
+    res = _run_cli("simulate", str(scenario), "--out", str(tmp_path / "new" / "a.mcap"))
+    assert res.returncode == 0, res.stderr  # a missing folder is created (the one policy)
+    assert (tmp_path / "new" / "a.mcap").is_file()

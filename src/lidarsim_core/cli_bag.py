@@ -18,6 +18,7 @@ def simulate_to_bag(scenario: "Scenario", frames: Sequence[int], out: Path, *,
     """Simulate ``frames`` into the bag ``out`` with a progress bar, then say what was
     written."""
     from rich.console import Console
+    from rich.markup import escape
 
     from .errors import OutputError
 
@@ -38,4 +39,4 @@ def simulate_to_bag(scenario: "Scenario", frames: Sequence[int], out: Path, *,
         ", /livox/lidar" if livox else "")
     Console(highlight=False).print(
         f"wrote {len(frames)} frame(s), {progress.points:,} points in "
-        f"{progress.elapsed:.2f} s → {out} (ROS 2 bag, MCAP; topics {topics})")
+        f"{progress.elapsed:.2f} s → {escape(str(out))} (ROS 2 bag, MCAP; topics {topics})")

@@ -248,18 +248,12 @@ def _check_target_names(names: Sequence[str]) -> None:
 
 
 def check_bag_output(path: str | Path, *, overwrite: bool = False) -> Path:
-    """Raise :class:`OutputError` unless a bag can be written to ``path``; returns it."""
-    path = Path(path)
-    parent = path.parent if str(path.parent) else Path(".")
-    if path.is_dir():
-        raise OutputError("output path is a directory", source=path)
-    if not parent.is_dir():
-        raise OutputError(f"output directory does not exist: {parent}", source=path)
-    if path.exists() and not overwrite:
-        raise OutputError("output file exists (use --overwrite to replace it)", source=path)
-    if not os.access(parent, os.W_OK | os.X_OK):
-        raise OutputError(f"output directory is not writable: {parent}", source=path)
-    return path
+    """Raise :class:`OutputError` unless a bag can be written to ``path`` (the one overwrite
+    policy of :mod:`lidarsim_core.outputs`); returns it."""
+    from ..outputs import check_file
+
+    check_file(path, overwrite=overwrite)
+    return Path(path)
 
 
 def write_bag(sim: "Simulation", frames: Sequence[int], path: str | Path, *,
@@ -293,7 +287,10 @@ def write_bag(sim: "Simulation", frames: Sequence[int], path: str | Path, *,
     _rosbags()
     from rosbags.rosbag2 import StoragePlugin, Writer
 
+    from ..outputs import make_parent
+
     path = check_bag_output(path, overwrite=overwrite)
+    make_parent(path)  # a missing folder is created, as for every output
     parent = path.parent if str(path.parent) else Path(".")
     target_names = list(sim.frame_info(frames[0]).target_names) if frames else []
     _check_target_names(target_names)
