@@ -6,6 +6,17 @@ from typing import Any
 
 import lidarsim_core as ls
 
+#: A small valid scenario file's contents for CLI tests: coarse Envisat 30 m away, MID-70
+#: rose, 0.05 s, NumPy backend (callers copy it before changing it).
+CLI_SCENARIO: dict[str, Any] = {
+    "seed": 1,
+    "sensor": {"datasheet": "livox-mid70-rose", "pose": {"position_m": [0, 0, 0]}},
+    "targets": [{"name": "envisat", "mesh": {"model": "envisat", "options": {"detail": "coarse"}},
+                 "pose": {"position_m": [30, -8, 0], "euler_deg": [0, 0, 90]}}],
+    "scan": {"duration_s": 0.05},
+    "backend": "numpy",
+}
+
 
 def datasheet(**overrides: Any) -> dict[str, Any]:
     """An inline test datasheet: circular 40° FOV rose scanner, 10 kHz, 1 cm / 0.05°."""

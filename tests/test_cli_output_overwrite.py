@@ -14,14 +14,7 @@ import numpy as np
 import pytest
 import yaml
 
-SCENARIO = {
-    "seed": 1,
-    "sensor": {"datasheet": "livox-mid70-rose", "pose": {"position_m": [0, 0, 0]}},
-    "targets": [{"name": "envisat", "mesh": {"model": "envisat", "options": {"detail": "coarse"}},
-                 "pose": {"position_m": [30, -8, 0], "euler_deg": [0, 0, 90]}}],
-    "scan": {"duration_s": 0.05},
-    "backend": "numpy",
-}
+from helpers import CLI_SCENARIO as SCENARIO
 
 
 def run_cli(*args: str, cwd: Path | None = None, columns: int = 80
