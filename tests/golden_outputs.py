@@ -1,0 +1,55 @@
+"""The reference outputs whose bytes must not move: their SHA-256, recomputed and compared by
+``tests/test_golden_outputs.py``.
+
+Run as a script to print the hashes of the current code (``python tests/golden_outputs.py``);
+``tests/data/golden_hashes.json`` holds those of the commit before the package-layout change
+(issue 21), so any change that moves a bit of these outputs says so by failing that test.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+TUMBLING = ROOT / "examples" / "scenarios" / "envisat_tumbling_hold.yaml"
+
+
+def _lidarsim(*args: str) -> None:
+    env = dict(os.environ, LIDARSIM_DISABLE_PLUGIN_AUTOLOAD="1")
+    subprocess.run([sys.executable, "-m", "lidarsim_core", *args], check=True, env=env,
+                   stdout=subprocess.DEVNULL, cwd=ROOT)
+
+
+def _hashes(folder: Path) -> dict[str, str]:
+    # the dataset's lock file is the run's bookkeeping, not an output
+    return {p.relative_to(folder).as_posix(): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(folder.rglob("*"))
+            if p.is_file() and p.name != ".lidarsim-dataset.lock"}
+
+
+def golden_hashes() -> dict[str, str]:
+    """SHA-256 of every reference output, keyed by its path in a scratch folder: the demo's
+    clouds with and without errors (PLY and NPZ with sidecars), the 20-frame tumbling dataset
+    (every file and the manifest), that scenario as one ROS 2 bag, and its poses file."""
+    import lidarsim_core as ls
+
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp)
+        for label, noisy in (("with_errors", True), ("without_errors", False)):
+            cloud = ls.simulate(ls.demo_scenario(noise=noisy))
+            for suffix in (".ply", ".npz"):
+                cloud.save(out / "demo" / f"cloud_{label}{suffix}")
+        _lidarsim("dataset", str(TUMBLING), "--out", str(out / "dataset"))
+        _lidarsim("simulate", str(TUMBLING), "--out", str(out / "bag" / "run.mcap"))
+        _lidarsim("poses", str(TUMBLING), "--out", str(out / "poses" / "poses.json"))
+        return _hashes(out)
+
+
+if __name__ == "__main__":
+    print(json.dumps(golden_hashes(), indent=1, sort_keys=True))
