@@ -93,7 +93,7 @@ def bench_scaling(frames: int, work: Path) -> dict:
 
     from lidarsim_core.dataset import generate_dataset
     from lidarsim_core.dataset.executors import local_cluster
-    from lidarsim_core.scenario import scenario_from_dict
+    from lidarsim_core.scenario.load import scenario_from_dict
 
     scenario = scenario_from_dict(scaling_scenario(frames))
     results = {}

@@ -30,9 +30,9 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "src"))
 
-from lidarsim_core.demo import demo_scenario  # noqa: E402
+from lidarsim_core.scenario.demo import demo_scenario  # noqa: E402
 from lidarsim_core.pipeline import Simulation  # noqa: E402
-from lidarsim_core.scenario import scenario_from_dict  # noqa: E402
+from lidarsim_core.scenario.load import scenario_from_dict  # noqa: E402
 
 
 def scenario(duration_s: float, multipath: dict | None):

@@ -12,7 +12,7 @@ It writes the reference pages
   and the options of every built-in trajectory, noise model, ray backend, target model and
   exporter, from their ``Options`` models;
 * ``reference/datasheet.md`` — every datasheet field, from
-  :class:`lidarsim_core.datasheet.SensorDatasheet`, and the options of every scan pattern;
+  :class:`lidarsim_core.scenario.datasheet.SensorDatasheet`, and the options of every scan pattern;
 * ``reference/sensors.md`` — the built-in sensor catalogue, one row per file in ``sensors/``;
 
 and renders code from the examples into the guides: a fenced block right after a line
@@ -162,7 +162,7 @@ def component_sections(kind: str, level: str = "###") -> str:
 # ---- pages ------------------------------------------------------------------------------------
 def scenario_reference() -> str:
     """The scenario reference page."""
-    from lidarsim_core.poses import PoseConfig
+    from lidarsim_core.scenario.pose import PoseConfig
     from lidarsim_core.scenario import Scenario
 
     parts = [
@@ -188,11 +188,11 @@ def scenario_reference() -> str:
 
 def datasheet_reference() -> str:
     """The datasheet reference page."""
-    from lidarsim_core.datasheet import SensorDatasheet
+    from lidarsim_core.scenario.datasheet import SensorDatasheet
 
     return "\n".join([
         "# Datasheet reference\n",
-        "Generated from `lidarsim_core.datasheet.SensorDatasheet` and the built-in scan "
+        "Generated from `lidarsim_core.scenario.datasheet.SensorDatasheet` and the built-in scan "
         "patterns' `Options` models (`python docs/gen_reference.py`). JSON schema: "
         "`lidarsim schema sensor`. Every value carries its unit in its name; every datasheet "
         "names its `sources`, and values that are estimates are listed in "
@@ -214,7 +214,7 @@ def _fov(sheet: Any) -> str:
 
 def catalogue_sheets() -> list[Any]:
     """Every datasheet in the repository's ``sensors/`` directory, by name."""
-    from lidarsim_core.datasheet import load_datasheet
+    from lidarsim_core.scenario.datasheet import load_datasheet
 
     return sorted((load_datasheet(p) for p in (ROOT / "sensors").glob("*.yaml")),
                   key=lambda s: s.name)

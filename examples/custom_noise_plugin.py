@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 from pydantic import Field
 
-from lidarsim_core.components import ComponentOptions
+from lidarsim_core.base.components import ComponentOptions
 from lidarsim_core.hookspecs import hookimpl
 from lidarsim_core.noise.base import NoiseContext, NoiseModel, Returns
 

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 from typing import Any
 
-from lidarsim_core.datasheet import SensorDatasheet
 from lidarsim_core.patterns.base import ScanPattern
 from lidarsim_core.plugins import get_registry
+from lidarsim_core.scenario.datasheet import SensorDatasheet
 
 
 def make_sheet(pattern: str, options: dict[str, Any] | None = None, *, fov_type: str = "circular",

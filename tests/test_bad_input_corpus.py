@@ -16,9 +16,17 @@ from collections import Counter
 from pathlib import Path
 
 import pytest
-
-from bad_inputs.corpus import (Case, Outcome, build, load_cases, points_in, run_api,
-                               run_in_process, run_subprocess, snapshot)
+from bad_inputs.corpus import (
+    Case,
+    Outcome,
+    build,
+    load_cases,
+    points_in,
+    run_api,
+    run_in_process,
+    run_subprocess,
+    snapshot,
+)
 
 CASES = load_cases()
 API_CASES = [c for c in CASES if c.api != "none"]
@@ -145,7 +153,7 @@ def test_cli_subprocess(case, subprocess_runs):
 
 @pytest.mark.parametrize("case", API_CASES, ids=_ids(API_CASES))
 def test_api(case, prepare):
-    from lidarsim_core.errors import PluginError, UserInputError
+    from lidarsim_core.base.errors import PluginError, UserInputError
 
     work = prepare(case)
     before = snapshot(work)
@@ -177,7 +185,7 @@ def test_corpus_size_and_categories():
 
 def test_debug_shows_the_traceback(prepare):
     """``--debug`` lets the exception through instead of the one line."""
-    from lidarsim_core.errors import ConfigError
+    from lidarsim_core.base.errors import ConfigError
 
     case = next(c for c in CASES if c.id == "zero-duration")
     prepare(case)

@@ -6,7 +6,6 @@ import json
 import math
 
 import numpy as np
-
 import pytest
 from typer.testing import CliRunner
 
@@ -49,8 +48,8 @@ def test_close_scene_hits_more_than_the_demo():
 
 
 def test_scan_rays_are_the_rays_the_pipeline_casts():
-    from lidarsim_core.demo import demo_scenario
     from lidarsim_core.pipeline import Simulation
+    from lidarsim_core.scenario.demo import demo_scenario
 
     sim = Simulation(demo_scenario(duration_s=0.01, detail="coarse", backend="numpy"))
     origins, directions = bench.scan_rays(sim)
@@ -105,7 +104,7 @@ def test_cli_prints_the_benchmark(monkeypatch, as_json, with_suite):
 
 
 def test_suite_scene_figures_are_consistent():
-    from lidarsim_core import bench_suite
+    from lidarsim_core.bench import suite as bench_suite
 
     scene = bench_suite.bench_suite_scene("tumbling-rose", duration_s=0.01, rounds=1)
     assert scene["rays_emitted"] == 1000 and scene["rays_cast"] == 1000
@@ -126,9 +125,9 @@ def test_suite_scene_figures_are_consistent():
 
 
 def test_suite_casts_every_sub_ray_and_both_targets():
-    from lidarsim_core import bench_suite
+    from lidarsim_core.bench import suite as bench_suite
     from lidarsim_core.pipeline import Simulation
-    from lidarsim_core.scenario import scenario_from_dict
+    from lidarsim_core.scenario.load import scenario_from_dict
 
     def sim(name):
         data = bench_suite.SUITE[name][1](0.01)
@@ -144,7 +143,7 @@ def test_suite_casts_every_sub_ray_and_both_targets():
 
 
 def test_suite_targets_and_dataset_throughput():
-    from lidarsim_core import bench_suite
+    from lidarsim_core.bench import suite as bench_suite
 
     scenes = {"static-demo": {"simulate": 10.0, "simulate_over_bare": 0.4,
                               "simulate_over_bare_1thread": 0.3},

@@ -13,12 +13,12 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from lidarsim_core.builtin_sensors import get_sensor
+from lidarsim_core.base.resources import package_data_dir
 from lidarsim_core.cli import app
-from lidarsim_core.demo import demo_scenario
-from lidarsim_core.patterns.coverage import pattern_for
-from lidarsim_core.plugins import get_registry, package_data_dir
 from lidarsim_core.pipeline import Simulation
+from lidarsim_core.plugins import get_registry
+from lidarsim_core.plugins.resolve import get_sensor, pattern_for
+from lidarsim_core.scenario.demo import demo_scenario
 
 REQUIRED = {
     "livox-mid70": "risley", "livox-mid70-rose": "rose", "livox-mid40": "risley",

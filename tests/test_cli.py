@@ -11,7 +11,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-
 from helpers import CLI_SCENARIO as GOOD_SCENARIO
 
 

@@ -13,7 +13,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
-
 from helpers import CLI_SCENARIO as SCENARIO
 
 
@@ -63,7 +62,7 @@ def test_sensors_piped_at_80_columns_prints_every_name_whole():
 
 def test_plugins_piped_at_80_columns_prints_every_name_whole():
     from lidarsim_core.plugins import get_registry
-    from lidarsim_core.registry import KINDS
+    from lidarsim_core.plugins.registry import KINDS
 
     res = run_cli("plugins")
     assert res.returncode == 0, res.stderr
@@ -82,7 +81,7 @@ def test_every_table_has_json():
 
 
 def test_plain_table_aligns_and_never_cuts():
-    from lidarsim_core.cli_output import Column, plain_table
+    from lidarsim_core.cli.output import Column, plain_table
 
     text = plain_table([Column("name"), Column("n", right=True)],
                        [["a-very-long-sensor-name-that-is-wider-than-anything", "1"],
@@ -105,7 +104,7 @@ def test_help_shows_no_type_after_plain_flags():
 def test_simulate_progress_counts_every_pulse():
     from lidarsim_core.cli import _counted_chunks
     from lidarsim_core.pipeline import Simulation
-    from lidarsim_core.scenario import scenario_from_dict
+    from lidarsim_core.scenario.load import scenario_from_dict
 
     sim = Simulation(scenario_from_dict({**SCENARIO, "chunk_rays": 1000}))
 
@@ -196,9 +195,9 @@ def test_output_folder_that_cannot_be_created_is_explained(scene):
 
 
 def test_cloud_save_never_replaces_without_overwrite(tmp_path):
-    from lidarsim_core.errors import OutputError
+    from lidarsim_core.base.errors import OutputError
     from lidarsim_core.pipeline import simulate
-    from lidarsim_core.scenario import scenario_from_dict
+    from lidarsim_core.scenario.load import scenario_from_dict
 
     cloud = simulate(scenario_from_dict(SCENARIO))
     path = cloud.save(tmp_path / "new" / "c.npz")  # the folder is created
@@ -226,7 +225,7 @@ def test_top_level_namespace_is_the_public_api():
 
 def test_cloud_and_frame_reprs_are_one_line():
     from lidarsim_core.pipeline import simulate
-    from lidarsim_core.scenario import scenario_from_dict
+    from lidarsim_core.scenario.load import scenario_from_dict
 
     cloud = simulate(scenario_from_dict(SCENARIO))
     text = repr(cloud)
@@ -240,7 +239,7 @@ def test_progress_bar_draws_at_a_terminal_and_stays_silent_in_a_pipe(monkeypatch
 
     from rich.console import Console
 
-    from lidarsim_core import cli_output
+    from lidarsim_core.cli import output as cli_output
 
     screen = io.StringIO()
     monkeypatch.setattr(cli_output, "console", lambda stderr=False: Console(
@@ -259,7 +258,7 @@ def test_progress_bar_draws_at_a_terminal_and_stays_silent_in_a_pipe(monkeypatch
 
 
 def test_a_narrow_terminal_leaves_out_optional_columns_never_names():
-    from lidarsim_core.cli_output import Column, _fitting_columns
+    from lidarsim_core.cli.output import Column, _fitting_columns
 
     columns = [Column("name", whole=True), Column("model", optional=True), Column("fov"),
                Column("provider", optional=True)]

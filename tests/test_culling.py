@@ -1,4 +1,4 @@
-"""Culling pulses that cannot reach a target changes no result (lidarsim_core.cull).
+"""Culling pulses that cannot reach a target changes no result (lidarsim_core.pipeline.cull).
 
 Each scene runs twice on the same Simulation, with its culler and with ``culler = None``
 (every pulse cast), and every column of the point record must be identical.
@@ -11,11 +11,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lidarsim_core.cull import PulseCuller, cull_tree
-from lidarsim_core.demo import demo_scenario
 from lidarsim_core.noise.base import NoiseModel
 from lidarsim_core.pipeline import Simulation
-from lidarsim_core.scenario import load_scenario, scenario_from_dict
+from lidarsim_core.pipeline.cull import PulseCuller, cull_tree
+from lidarsim_core.scenario.demo import demo_scenario
+from lidarsim_core.scenario.load import load_scenario, scenario_from_dict
 
 pytest.importorskip("numba", reason="culling runs with the compiled kernels (extra 'fast')")
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "scenarios"
@@ -104,7 +104,7 @@ SCENES = {
 
 
 def _suite(name: str, duration: float):
-    from lidarsim_core.bench_suite import SUITE
+    from lidarsim_core.bench.suite import SUITE
 
     return scenario_from_dict(SUITE[name][1](duration), source=f"<{name}>")
 
@@ -144,7 +144,7 @@ def test_culling_drops_most_pulses_that_miss():
 
 def test_margin_covers_the_largest_possible_draw_and_the_beam():
     sim = Simulation(scenario_from_dict(_wide_angular_error()))
-    from lidarsim_core.rng import MAX_ABS_NORMAL
+    from lidarsim_core.noise.rng import MAX_ABS_NORMAL
 
     assert sim.culler.margin_rad == pytest.approx(
         np.sqrt(2) * MAX_ABS_NORMAL * np.radians(1.5), rel=1e-5)

@@ -15,12 +15,13 @@ import numpy as np
 import pytest
 import yaml
 
+from lidarsim_core.base.errors import ConfigError, OutputError
 from lidarsim_core.dataset import generate_dataset, read_manifest
 from lidarsim_core.dataset.config import SplitFractions
 from lidarsim_core.dataset.lock import dataset_lock
 from lidarsim_core.dataset.splits import assign_splits, split_counts
-from lidarsim_core.errors import ConfigError, OutputError
-from lidarsim_core.groundtruth import pose_from_record, read_ground_truth
+from lidarsim_core.io.groundtruth import read_ground_truth
+from lidarsim_core.records.groundtruth import pose_from_record
 
 SCENARIO = {
     "seed": 4,
@@ -141,8 +142,8 @@ def test_foreign_directory_and_concurrent_runs_are_refused(scenario_file, tmp_pa
 def test_any_frame_regenerates_bit_for_bit_from_the_copy_even_when_moved(tmp_path):
     import trimesh
 
-    from lidarsim_core.scenario import load_scenario
     from lidarsim_core.pipeline import Simulation
+    from lidarsim_core.scenario.load import load_scenario
 
     meshes = tmp_path / "meshes"
     meshes.mkdir()

@@ -6,10 +6,9 @@ from __future__ import annotations
 
 import pytest
 import yaml
+from test_dataset import SCENARIO, tree
 
 from lidarsim_core.dataset import generate_dataset, worker_cache_info
-
-from test_dataset import SCENARIO, tree
 
 pytest.importorskip("dask.distributed")
 

@@ -17,8 +17,8 @@ import yaml
 
 pytest.importorskip("rosbags")
 
+from lidarsim_core.base.errors import ConfigError  # noqa: E402
 from lidarsim_core.dataset import generate_dataset, read_manifest  # noqa: E402
-from lidarsim_core.errors import ConfigError  # noqa: E402
 
 SCENARIO = {
     "seed": 4,

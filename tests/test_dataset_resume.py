@@ -14,7 +14,6 @@ from pathlib import Path
 
 import pytest
 import yaml
-
 from test_dataset import SCENARIO, run_cli, tree
 
 FRAMES = 16

@@ -11,11 +11,11 @@ import pytest
 from helpers import datasheet, scenario
 from scipy.special import ndtr
 
-from lidarsim_core.builtin_sensors import get_sensor
-from lidarsim_core.datasheet import RangeAtReflectivity
-from lidarsim_core.errors import ConfigError
+from lidarsim_core.base.errors import ConfigError
+from lidarsim_core.instrument.linkbudget import LinkBudget
 from lidarsim_core.pipeline import Simulation
-from lidarsim_core.radiometry import LinkBudget
+from lidarsim_core.plugins.resolve import get_sensor
+from lidarsim_core.scenario.datasheet import RangeAtReflectivity
 
 #: Livox MID-70 datasheet: 90 m at 10 %, 130 m at 20 %, 260 m at 80 % reflectivity.
 MID70 = [(0.10, 90.0), (0.20, 130.0), (0.80, 260.0)]
@@ -36,7 +36,7 @@ def _plate_scenario(range_m, rho, *, angle_deg=0.0, detection=None, sheet=None, 
     data = sc.model_dump()
     data["sensor"]["detection"] = {"range_max_m": 1000.0} if detection is None else detection
     data["targets"][0]["materials"] = {"plate": {"diffuse_reflectivity": rho}}
-    from lidarsim_core.scenario import scenario_from_dict
+    from lidarsim_core.scenario.load import scenario_from_dict
 
     return scenario_from_dict(data)
 
@@ -80,7 +80,7 @@ def test_detection_probability_crosses_half_at_the_datasheet_range(rho, datashee
 def test_detection_and_intensity_fall_with_incidence_as_the_formula(material):
     """Tilted plates; every hit kept (detected or not) with its incidence and range, so the
     detection count is tested against Σ P_d = Σ Φ(TNR (C ρ_eff(θ)/R^n − 1))."""
-    from lidarsim_core.materials import Material
+    from lidarsim_core.scene.materials import Material
 
     mat = Material(**material)
     sim0 = Simulation(_plate_scenario(140.0, 0.8))
@@ -94,7 +94,7 @@ def test_detection_and_intensity_fall_with_incidence_as_the_formula(material):
                              detection={"keep_undetected": True, "range_max_m": 1000.0})
         data = sc.model_dump()
         data["targets"][0]["materials"] = {"plate": material}
-        from lidarsim_core.scenario import scenario_from_dict
+        from lidarsim_core.scenario.load import scenario_from_dict
 
         cloud = Simulation(scenario_from_dict(data)).run_frame(0)
         assert len(cloud) == cloud.frame.rays_emitted  # every pulse hits the plate
@@ -153,7 +153,7 @@ def test_strong_returns_are_all_detected_with_unchanged_noise():
     with_det = Simulation(_plate_scenario(10.0, 0.8, detection={}, noise=noise)).run_frame(0)
     data = _plate_scenario(10.0, 0.8, noise=noise).model_dump()
     data["sensor"]["detection"] = None
-    from lidarsim_core.scenario import scenario_from_dict
+    from lidarsim_core.scenario.load import scenario_from_dict
 
     without = Simulation(scenario_from_dict(data)).run_frame(0)
     assert len(with_det) == len(without) == 2000
@@ -199,7 +199,7 @@ def test_catalogue_mid70_calibrates_within_five_percent():
 def test_unknown_detection_key_is_rejected():
     data = _plate_scenario(50.0, 0.2).model_dump()
     data["sensor"]["detection"] = {"treshold": 3}
-    from lidarsim_core.scenario import scenario_from_dict
+    from lidarsim_core.scenario.load import scenario_from_dict
 
     with pytest.raises(ConfigError) as err:
         scenario_from_dict(data)
@@ -209,7 +209,7 @@ def test_unknown_detection_key_is_rejected():
 def test_config_hash_changes_only_when_realism_is_set():
     plain = scenario(PLATE, {"position_m": [50, 0, 0]})
     data = plain.model_dump()
-    from lidarsim_core.scenario import scenario_from_dict
+    from lidarsim_core.scenario.load import scenario_from_dict
 
     assert scenario_from_dict(data).config_hash() == plain.config_hash()
     data["sensor"]["detection"] = {}

@@ -16,14 +16,20 @@ import numpy as np
 import pytest
 import yaml
 from scipy.spatial.transform import Rotation
-
-from lidarsim_core.evaluate import (FrameInput, PoseEstimate, PoseEstimator, SymmetryGroup,
-                                    evaluate_dataset, parse_symmetry, pose_errors)
-from lidarsim_core.evaluate.symmetry import closest_equivalent
-from lidarsim_core.errors import ConfigError, OutputError
-from lidarsim_core.hookspecs import hookimpl
-
 from test_dataset import tree
+
+from lidarsim_core.base.errors import ConfigError, OutputError
+from lidarsim_core.evaluate import (
+    FrameInput,
+    PoseEstimate,
+    PoseEstimator,
+    SymmetryGroup,
+    evaluate_dataset,
+    parse_symmetry,
+    pose_errors,
+)
+from lidarsim_core.evaluate.symmetry import closest_equivalent
+from lidarsim_core.hookspecs import hookimpl
 
 # ---- metrics on constructed cases ---------------------------------------------------------
 Q_GT = Rotation.from_euler("zyx", [30, -20, 10], degrees=True)

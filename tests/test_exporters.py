@@ -14,11 +14,13 @@ import sys
 import numpy as np
 import pytest
 
-from lidarsim_core.errors import OutputError
-from lidarsim_core.io.base import exporter_for, write_cloud, write_points_file
+from lidarsim_core.base.errors import OutputError
+from lidarsim_core.io.base import write_points_file
 from lidarsim_core.io.points import CloudPoints, PointSpool
 from lidarsim_core.io.sidecar import read_sidecar, sidecar_path
-from lidarsim_core.pointcloud import POINT_FIELDS, PointCloud
+from lidarsim_core.plugins.resolve import exporter_for
+from lidarsim_core.plugins.shortcuts import write_cloud
+from lidarsim_core.records.pointcloud import POINT_FIELDS, PointCloud
 
 FORMATS = ["ply", "npz", "pcd", "las", "laz", "csv"]
 
@@ -26,8 +28,8 @@ FORMATS = ["ply", "npz", "pcd", "las", "laz", "csv"]
 @pytest.fixture(scope="module")
 def cloud() -> PointCloud:
     """A noisy Envisat scan: several parts, every column populated."""
-    from lidarsim_core.demo import demo_scenario
     from lidarsim_core.pipeline import Simulation
+    from lidarsim_core.scenario.demo import demo_scenario
 
     scenario = demo_scenario(duration_s=0.05, backend="numpy", detail="coarse", seed=3)
     result = Simulation(scenario).run_frame(0)
@@ -224,7 +226,7 @@ def test_streamed_through_a_spilled_spool_gives_the_same_bytes(cloud, tmp_path, 
             spool.append({k: v[lo:hi] for k, v in cloud.columns.items()})
         assert spool.spilled and len(spool) == len(cloud)
         streamed = tmp_path / f"streamed.{fmt}"
-        write_points_file(spool, streamed, sidecar=False)
+        write_points_file(spool, streamed, exporter_for(streamed), sidecar=False)
     assert streamed.read_bytes() == whole.read_bytes()
 
 

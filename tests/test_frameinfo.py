@@ -1,4 +1,4 @@
-"""Frame metadata of many frames at once (lidarsim_core.frameinfo) against the one-frame
+"""Frame metadata of many frames at once (lidarsim_core.pipeline.frameinfo) against the one-frame
 composition: every pose of every frame is the same to the bit, and so is the poses file."""
 
 from __future__ import annotations
@@ -7,12 +7,12 @@ import json
 
 import numpy as np
 import pytest
-
-from lidarsim_core.bench_suite import SUITE
-from lidarsim_core.groundtruth import frame_record, frame_records
-from lidarsim_core.pipeline import Simulation
-from lidarsim_core.scenario import scenario_from_dict
 from test_posing import TRAJECTORIES, _trajectory
+
+from lidarsim_core.bench.suite import SUITE
+from lidarsim_core.pipeline import Simulation
+from lidarsim_core.records.groundtruth import frame_record, frame_records
+from lidarsim_core.scenario.load import scenario_from_dict
 
 
 def _one_frame(sim: Simulation, frame: int) -> dict:
@@ -72,7 +72,7 @@ def test_poses_file_is_the_frame_by_frame_file(tmp_path, monkeypatch) -> None:
     """The dataset's poses file, made in blocks, is byte for byte the file written one frame
     at a time (a sequence longer than a block, so the block boundary is crossed)."""
     from lidarsim_core.dataset import poses as poses_module
-    from lidarsim_core.groundtruth import ground_truth
+    from lidarsim_core.records.groundtruth import ground_truth
 
     sim = _sequence("flyaround-50m", 9)
     cloud = "frames/{:06d}.ply".format

@@ -19,11 +19,10 @@ import sys
 from pathlib import Path
 
 import pytest
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
-
 from fuzz.cases import dataset_case, environment_case, option_case, scenario_case
 from fuzz.harness import Worker, check_contract, snapshot
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 # the worker caps its memory with RLIMIT_AS and the cases make FIFOs: Linux semantics
 pytestmark = pytest.mark.skipif(sys.platform != "linux", reason="the fuzz worker needs Linux")

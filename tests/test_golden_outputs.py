@@ -14,7 +14,6 @@ import json
 from pathlib import Path
 
 import pytest
-
 from golden_outputs import golden_hashes
 
 EXPECTED = Path(__file__).parent / "data" / "golden_hashes.json"

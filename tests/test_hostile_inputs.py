@@ -139,9 +139,9 @@ def test_pattern_and_coverage_sizes_are_refused(tmp_path, capsys, argv, fragment
 def test_coverage_cells_are_computed_like_the_grid():
     """The budget's cell count equals the grid fov_coverage builds, for every catalogue
     sensor (an independent count: the grid's own arrays)."""
-    from lidarsim_core.limits import coverage_cells
-    from lidarsim_core.patterns.coverage import _Grid, pattern_for
+    from lidarsim_core.patterns.fov import _Grid, coverage_cells
     from lidarsim_core.plugins import get_registry
+    from lidarsim_core.plugins.resolve import pattern_for
 
     for entry in get_registry().iter("sensor"):
         pattern = pattern_for(entry.obj)
@@ -244,8 +244,8 @@ def test_inputs_over_the_size_limit_are_refused(tmp_path, capsys, monkeypatch):
 def test_the_reader_never_reads_past_its_limit(tmp_path):
     """A file that reports a small size but grows (or a /proc-like file) is cut at the
     limit + 1 byte and refused."""
-    from lidarsim_core.config_io import read_bytes_file
-    from lidarsim_core.errors import ConfigError
+    from lidarsim_core.base.config_io import read_bytes_file
+    from lidarsim_core.base.errors import ConfigError
 
     path = tmp_path / "big.yaml"
     path.write_bytes(b"x" * 1000)
@@ -473,7 +473,7 @@ def test_refusing_a_foreign_directory_leaves_no_lock(tmp_path, capsys):
 
 
 def test_every_limit_is_documented():
-    from lidarsim_core.limits import LIMITS
+    from lidarsim_core.base.limits import LIMITS
 
     text = (Path(__file__).parents[1] / "docs" / "reliability.md").read_text()
     for spec in LIMITS.values():

@@ -24,7 +24,7 @@ import pytest
 
 import lidarsim_core as ls
 from lidarsim_core.io.base import write_cloud
-from lidarsim_core.pointcloud import POINT_FIELDS, PointCloud
+from lidarsim_core.records.pointcloud import POINT_FIELDS, PointCloud
 
 FORMATS = ["ply", "pcd", "las", "laz", "csv", "npz"]
 #: Part names that readers and exporters have mangled or could mangle: underscores (laspy's

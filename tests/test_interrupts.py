@@ -132,7 +132,7 @@ def _surfacing_through_a_kernel(interrupt: KeyboardInterrupt) -> SystemError:
 
 
 def test_an_interrupt_behind_a_kernel_error_is_found():
-    from lidarsim_core.guard import Terminated, interrupt_behind
+    from lidarsim_core.base.signals import Terminated, interrupt_behind
 
     term = Terminated()
     assert interrupt_behind(_surfacing_through_a_kernel(term)) is term
@@ -145,7 +145,8 @@ def test_an_interrupt_behind_a_kernel_error_is_found():
     ("KeyboardInterrupt", 130, "error: interrupted; no partial output was kept")])
 def test_cli_reports_an_interrupt_surfacing_through_a_kernel_as_the_interrupt(
         interrupt, code, line, capsys):
-    from lidarsim_core import cli, guard
+    from lidarsim_core import cli
+    from lidarsim_core.base import signals as guard
 
     cause = guard.Terminated() if interrupt == "Terminated" else KeyboardInterrupt()
 
@@ -161,9 +162,9 @@ def test_cli_reports_an_interrupt_surfacing_through_a_kernel_as_the_interrupt(
 
 
 def test_simulation_reraises_an_interrupt_surfacing_through_a_kernel(monkeypatch):
-    from lidarsim_core.demo import demo_scenario
-    from lidarsim_core.guard import Terminated
+    from lidarsim_core.base.signals import Terminated
     from lidarsim_core.pipeline import Simulation
+    from lidarsim_core.scenario.demo import demo_scenario
 
     sim = Simulation(demo_scenario(duration_s=0.01, detail="coarse", backend="numpy"))
     term = Terminated()

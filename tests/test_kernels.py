@@ -7,10 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from lidarsim_core import kernels, rng
-from lidarsim_core.demo import demo_scenario
-from lidarsim_core.errors import ConfigError
+from lidarsim_core import kernels
+from lidarsim_core.base.errors import ConfigError
+from lidarsim_core.noise import rng
 from lidarsim_core.pipeline import Simulation
+from lidarsim_core.scenario.demo import demo_scenario
 
 numba = pytest.importorskip("numba", reason="the compiled kernels need numba (extra 'fast')")
 

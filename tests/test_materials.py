@@ -9,10 +9,15 @@ import numpy as np
 import pytest
 from helpers import scenario
 
-from lidarsim_core.errors import ConfigError
-from lidarsim_core.materials import (MATERIAL_LIBRARY, Material, MaterialTable,
-                                     material_from_colour, specular_peak)
+from lidarsim_core.base.errors import ConfigError
 from lidarsim_core.pipeline import Simulation
+from lidarsim_core.scene.materials import (
+    MATERIAL_LIBRARY,
+    Material,
+    MaterialTable,
+    material_from_colour,
+    specular_peak,
+)
 
 PLATE = {"model": "plate", "options": {"size_m": [20, 20]}}
 
@@ -24,7 +29,7 @@ def _tilted(angle_deg: float) -> dict:
 
 def _with_materials(sc, materials: dict):
     """``sc`` with its first target's ``materials`` set."""
-    from lidarsim_core.scenario import scenario_from_dict
+    from lidarsim_core.scenario.load import scenario_from_dict
 
     data = sc.model_dump()
     data["targets"][0]["materials"] = materials
@@ -75,9 +80,9 @@ def test_every_library_material_states_its_source():
 
 # ---- Envisat and the intensity column ----------------------------------------------------------
 def test_envisat_parts_have_default_materials_and_intensity_follows_them():
-    from lidarsim_core.demo import demo_scenario
     from lidarsim_core.models.builtin import ENVISAT_MATERIALS
     from lidarsim_core.models.envisat import ENVISAT_PARTS
+    from lidarsim_core.scenario.demo import demo_scenario
 
     assert set(ENVISAT_MATERIALS) == set(ENVISAT_PARTS)
     assert set(ENVISAT_MATERIALS.values()) <= set(MATERIAL_LIBRARY)
@@ -111,7 +116,7 @@ def test_parts_without_material_use_the_default():
 
 
 def test_scenario_materials_by_name_inline_star_and_own_library():
-    from lidarsim_core.scenario import scenario_from_dict
+    from lidarsim_core.scenario.load import scenario_from_dict
 
     base = scenario({"model": "envisat", "options": {"detail": "coarse"}},
                     {"position_m": [30, -8, 0]}).model_dump()
@@ -138,7 +143,7 @@ def test_bad_materials_name_the_field(materials, own, field, words):
     sc = scenario(PLATE, _tilted(0), materials=own)
     data = sc.model_dump()
     data["targets"][0]["materials"] = materials
-    from lidarsim_core.scenario import scenario_from_dict
+    from lidarsim_core.scenario.load import scenario_from_dict
 
     with pytest.raises(ConfigError) as err:
         Simulation(scenario_from_dict(data))
@@ -155,7 +160,7 @@ def test_obj_mtl_colours_become_part_materials(tmp_path):
     (tmp_path / "m.obj").write_text(
         "mtllib m.mtl\nv 0 -5 -5\nv 0 5 -5\nv 0 5 5\nv 0 -5 5\n"
         "v 1 -5 -5\nv 1 5 -5\nv 1 5 5\nusemtl dark\nf 1 2 3\nf 1 3 4\nusemtl light\nf 5 6 7\n")
-    from lidarsim_core.mesh import load_mesh_file
+    from lidarsim_core.scene.mesh import load_mesh_file
 
     mesh = load_mesh_file(tmp_path / "m.obj")
     mats = dict(zip(mesh.part_names, mesh.part_materials))
@@ -180,7 +185,7 @@ def test_obj_mtl_colours_become_part_materials(tmp_path):
 def test_glb_base_colour_and_colourless_stl(tmp_path):
     import trimesh
 
-    from lidarsim_core.mesh import load_mesh_file
+    from lidarsim_core.scene.mesh import load_mesh_file
 
     box = trimesh.creation.box()
     box.visual = trimesh.visual.TextureVisuals(

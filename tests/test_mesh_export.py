@@ -20,7 +20,7 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 import lidarsim_core as ls
-from lidarsim_core.demo import demo_target_pose
+from lidarsim_core.scenario.demo import demo_target_pose
 
 needs_open3d = pytest.mark.skipif(importlib.util.find_spec("open3d") is None,
                                   reason="open3d is not installed (extra 'test')")
@@ -42,7 +42,7 @@ def _run_cli(*args: str):
     """The CLI in-process (the subprocess start-up is what the other CLI tests cover)."""
     from typer.testing import CliRunner
 
-    import lidarsim_core.cli_mesh  # noqa: F401  (registers the command)
+    import lidarsim_core.cli.mesh  # noqa: F401  (registers the command)
     from lidarsim_core.cli import app
 
     result = CliRunner().invoke(app, list(args), env={"COLUMNS": "200"})

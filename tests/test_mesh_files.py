@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from lidarsim_core.errors import MeshError
-from lidarsim_core.mesh import load_mesh_file
+from lidarsim_core.base.errors import MeshError
+from lidarsim_core.scene.mesh import load_mesh_file
 
 
 def _box() -> trimesh.Trimesh:

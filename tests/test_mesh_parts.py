@@ -49,7 +49,7 @@ def _ascii_stl(path: Path, names: list[str]) -> Path:
 
 @pytest.mark.parametrize("keyword", ["o", "g"])
 def test_obj_with_four_objects_gives_four_parts_in_file_order(tmp_path, keyword):
-    from lidarsim_core.mesh import load_mesh_file
+    from lidarsim_core.scene.mesh import load_mesh_file
 
     mesh = load_mesh_file(_obj(tmp_path / "sat.obj", keyword))
     assert mesh.part_names == tuple(NAMES)
@@ -61,7 +61,7 @@ def test_obj_with_four_objects_gives_four_parts_in_file_order(tmp_path, keyword)
 
 
 def test_two_solid_ascii_stl_gives_two_named_parts(tmp_path):
-    from lidarsim_core.mesh import load_mesh_file
+    from lidarsim_core.scene.mesh import load_mesh_file
 
     mesh = load_mesh_file(_ascii_stl(tmp_path / "sat.stl", ["bus", "panel_right"]))
     assert mesh.part_names == ("bus", "panel_right")
@@ -71,7 +71,7 @@ def test_two_solid_ascii_stl_gives_two_named_parts(tmp_path):
 def test_glb_nodes_give_parts(tmp_path):
     import trimesh
 
-    from lidarsim_core.mesh import load_mesh_file
+    from lidarsim_core.scene.mesh import load_mesh_file
 
     scene = trimesh.Scene()
     for name, box in zip(NAMES, _boxes()):
@@ -84,7 +84,7 @@ def test_glb_nodes_give_parts(tmp_path):
 def test_ply_per_face_labels_give_named_parts(tmp_path):
     from plyfile import PlyData, PlyElement
 
-    from lidarsim_core.mesh import load_mesh_file
+    from lidarsim_core.scene.mesh import load_mesh_file
 
     boxes = _boxes()[:3]
     vertices = np.concatenate([b.vertices for b in boxes])
@@ -106,7 +106,7 @@ def test_ply_per_face_labels_give_named_parts(tmp_path):
 
 def test_simulated_points_carry_the_obj_parts(tmp_path):
     from lidarsim_core.pipeline import simulate
-    from lidarsim_core.scenario import scenario_from_dict
+    from lidarsim_core.scenario.load import scenario_from_dict
 
     obj = _obj(tmp_path / "sat.obj", "o")
     scenario = scenario_from_dict({

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import datasheet, scenario
 
 import lidarsim_core as ls
-from helpers import datasheet, scenario
 from lidarsim_core.noise.base import perpendicular_basis
 from lidarsim_core.patterns.geometry import directions_from_az_el
 

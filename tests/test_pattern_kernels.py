@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from lidarsim_core.builtin_sensors import get_sensor
 from lidarsim_core.plugins import get_registry
+from lidarsim_core.plugins.resolve import get_sensor
 
 pytest.importorskip("numba", reason="the compiled patterns need the 'fast' extra")
 

@@ -5,12 +5,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-
-from lidarsim_core.builtin_sensors import get_sensor
-from lidarsim_core.patterns.coverage import pattern_for
-from lidarsim_core.plugins import get_registry
-from lidarsim_core.testing.patterns import PatternConformance
 from patterns_support import build, make_sheet
+
+from lidarsim_core.plugins import get_registry
+from lidarsim_core.plugins.resolve import get_sensor, pattern_for
+from lidarsim_core.testing.patterns import PatternConformance
 
 CATALOGUE = get_registry().names("sensor")
 

@@ -7,13 +7,13 @@ import math
 
 import numpy as np
 import pytest
+from patterns_support import build, make_sheet
 from typer.testing import CliRunner
 
-import lidarsim_core.cli_patterns  # noqa: F401  (registers the commands on the app)
-from lidarsim_core.builtin_sensors import get_sensor
+import lidarsim_core.cli.patterns  # noqa: F401  (registers the commands on the app)
 from lidarsim_core.cli import app
-from lidarsim_core.patterns.coverage import fov_coverage, pattern_for
-from patterns_support import build, make_sheet
+from lidarsim_core.patterns.fov import fov_coverage
+from lidarsim_core.plugins.resolve import get_sensor, pattern_for
 
 #: The MID-70 (Risley) coverage on 0.5° cells stated in docs/patterns.md and docs/sensors.md.
 MID70_DOCUMENTED = {0.1: 0.194, 0.5: 0.686, 1.0: 0.924}

@@ -6,12 +6,11 @@ import math
 
 import numpy as np
 import pytest
-
-from lidarsim_core.builtin_sensors import get_sensor
-from lidarsim_core.errors import ConfigError
-from lidarsim_core.patterns.coverage import pattern_for
-from lidarsim_core.patterns.geometry import az_el_from_directions
 from patterns_support import build, make_sheet
+
+from lidarsim_core.base.errors import ConfigError
+from lidarsim_core.patterns.geometry import az_el_from_directions
+from lidarsim_core.plugins.resolve import get_sensor, pattern_for
 
 RECT = dict(fov_type="rectangular", fov_h_deg=30.0, fov_v_deg=20.0, rate=1000.0)
 

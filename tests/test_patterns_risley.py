@@ -7,13 +7,12 @@ import math
 
 import numpy as np
 import pytest
+from patterns_support import build, make_sheet
 
-from lidarsim_core.builtin_sensors import get_sensor
-from lidarsim_core.errors import ConfigError
-from lidarsim_core.patterns.coverage import pattern_for
+from lidarsim_core.base.errors import ConfigError
 from lidarsim_core.patterns.geometry import az_el_from_directions, off_axis_angle
 from lidarsim_core.patterns.optics import refract, tilted_normal
-from patterns_support import build, make_sheet
+from lidarsim_core.plugins.resolve import get_sensor, pattern_for
 
 
 # ---- vector Snell's law -------------------------------------------------------------------

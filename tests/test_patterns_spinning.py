@@ -6,12 +6,11 @@ import math
 
 import numpy as np
 import pytest
-
-from lidarsim_core.builtin_sensors import get_sensor
-from lidarsim_core.errors import ConfigError
-from lidarsim_core.patterns.coverage import pattern_for
-from lidarsim_core.patterns.geometry import az_el_from_directions
 from patterns_support import build, make_sheet
+
+from lidarsim_core.base.errors import ConfigError
+from lidarsim_core.patterns.geometry import az_el_from_directions
+from lidarsim_core.plugins.resolve import get_sensor, pattern_for
 
 # VLP-16 User Manual: laser IDs 0..15 in firing order, their vertical angles, and the timing
 VLP16_ELEVATIONS = [-15, 1, -13, 3, -11, 5, -9, 7, -7, 9, -5, 11, -3, 13, -1, 15]

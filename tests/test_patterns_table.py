@@ -4,16 +4,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from patterns_support import build, make_sheet
 from typer.testing import CliRunner
 
-from lidarsim_core.builtin_sensors import get_sensor
+from lidarsim_core.base.errors import ConfigError, PatternFileError
 from lidarsim_core.cli import app
-from lidarsim_core.datasheet import SensorDatasheet
-from lidarsim_core.errors import ConfigError, PatternFileError
-from lidarsim_core.patterns.coverage import pattern_for
 from lidarsim_core.patterns.geometry import az_el_from_directions
 from lidarsim_core.patterns.table_io import read_pattern_table
-from patterns_support import build, make_sheet
+from lidarsim_core.plugins.resolve import get_sensor, pattern_for
+from lidarsim_core.scenario.datasheet import SensorDatasheet
 
 RECT = dict(fov_type="rectangular", fov_h_deg=40.0, fov_v_deg=30.0, rate=10_000.0)
 
@@ -130,7 +129,7 @@ def test_cli_reports_a_bad_table_in_one_line(tmp_path):
     sheet = make_sheet("table", {"path": str(bad)}, name="vendor-x", **RECT)
     sheet_file = tmp_path / "vendor-x.yaml"
     sheet_file.write_text(sheet.model_dump_json())  # JSON is valid YAML
-    import lidarsim_core.cli_patterns  # noqa: F401  (registers the command)
+    import lidarsim_core.cli.patterns  # noqa: F401  (registers the command)
 
     result = CliRunner().invoke(app, ["coverage", str(sheet_file), "--time", "0.1"])
     assert result.exit_code == 2

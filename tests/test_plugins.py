@@ -6,14 +6,17 @@ from __future__ import annotations
 import subprocess
 import sys
 import textwrap
-import warnings
 from pathlib import Path
 
 import pytest
 
 import lidarsim_core as ls
-from lidarsim_core.errors import PluginError, UnknownNameError
-from lidarsim_core.plugins import PluginLoadWarning, build_plugin_manager, build_registry
+from lidarsim_core.base.errors import PluginError, UnknownNameError
+from lidarsim_core.plugins import (
+    PluginLoadWarning,
+    build_plugin_manager,
+    build_registry,
+)
 
 GOOD_PLUGIN = '''
 from lidarsim_core.hookspecs import hookimpl
@@ -159,7 +162,7 @@ def test_import_is_light():
 
 def test_every_hook_is_documented():
     from lidarsim_core import hookspecs
-    from lidarsim_core.registry import KINDS
+    from lidarsim_core.plugins.registry import KINDS
 
     hooks = {name for name in dir(hookspecs) if name.startswith("lidarsim_")}
     assert hooks == set(KINDS.values())

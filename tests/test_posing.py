@@ -1,4 +1,4 @@
-"""Per-ray poses in closed form (lidarsim_core.posing) agree with the SciPy path of
+"""Per-ray poses in closed form (lidarsim_core.geometry.posing) agree with the SciPy path of
 ``poses_at``, are shared by culling and casting, and leave third-party trajectories alone."""
 
 from __future__ import annotations
@@ -8,11 +8,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from lidarsim_core.plugins import get_registry
-from lidarsim_core.posing import PoseMatrices, RotationChain, has_fast_path, pose_matrices
+from lidarsim_core.geometry.posing import PoseMatrices, RotationChain
 from lidarsim_core.pipeline import Simulation
-from lidarsim_core.scenario import load_scenario
+from lidarsim_core.plugins import get_registry
+from lidarsim_core.scenario.load import load_scenario
 from lidarsim_core.trajectories.base import Trajectory
+from lidarsim_core.trajectories.matrices import has_fast_path, pose_matrices
 from lidarsim_core.trajectories.tumbling import TumblingTrajectory
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "scenarios"
@@ -128,7 +129,7 @@ def test_a_subclass_overriding_poses_at_and_plugins_take_the_general_path():
 def test_poses_are_computed_once_per_piece_and_the_frame_matches_the_scipy_path(monkeypatch):
     """The tumbling hold: trajectories are evaluated once per piece (culling and casting
     share them), and the points agree with the SciPy path of ``poses_at`` to 1e-12 m."""
-    import lidarsim_core.posing as posing
+    import lidarsim_core.geometry.posing as posing
 
     scenario = load_scenario(EXAMPLES / "envisat_tumbling_hold.yaml")
     sim = Simulation(scenario)
@@ -157,8 +158,8 @@ def test_poses_are_computed_once_per_piece_and_the_frame_matches_the_scipy_path(
 
 @pytest.mark.parametrize("scene", ["tumbling-risley", "flyaround-50m", "vlp16-circling-15m"])
 def test_per_ray_poses_give_the_same_bytes_for_any_chunk_size_and_threads(scene, monkeypatch):
-    from lidarsim_core.bench_suite import SUITE
-    from lidarsim_core.scenario import scenario_from_dict
+    from lidarsim_core.bench.suite import SUITE
+    from lidarsim_core.scenario.load import scenario_from_dict
 
     scenario = scenario_from_dict(SUITE[scene][1](0.03), source="<test>")
     clouds = []

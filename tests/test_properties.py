@@ -21,8 +21,9 @@ from hypothesis import strategies as st
 from scipy.spatial import ConvexHull
 from scipy.spatial.transform import Rotation
 
-from lidarsim_core.chunks import rotate, to_body
-from lidarsim_core.poses import PoseConfig, Poses
+from lidarsim_core.geometry.frames import rotate, to_body
+from lidarsim_core.geometry.poses import Poses
+from lidarsim_core.scenario.pose import PoseConfig
 
 FAST = settings(max_examples=100, deadline=None,
                 suppress_health_check=[HealthCheck.too_slow])
@@ -108,8 +109,7 @@ def _sensor_names() -> list[str]:
 
 @functools.lru_cache(maxsize=None)
 def _pattern(name: str):
-    from lidarsim_core.builtin_sensors import get_sensor
-    from lidarsim_core.patterns.coverage import pattern_for
+    from lidarsim_core.plugins.resolve import get_sensor, pattern_for
 
     return pattern_for(get_sensor(name))
 
@@ -189,8 +189,8 @@ def clipped_ray(planes: np.ndarray, origins: np.ndarray, dirs: np.ndarray):
        scale=st.sampled_from([0.05, 1.0, 30.0]), offset=st.sampled_from([0.0, 50.0]))
 def test_backends_agree_with_clipping_on_convex_polyhedra(backend_name, seed, n_points, scale,
                                                           offset):
-    from lidarsim_core.mesh import Mesh
     from lidarsim_core.plugins import get_registry
+    from lidarsim_core.scene.mesh import Mesh
 
     rng = np.random.default_rng(seed)
     centre = np.array([offset, -offset / 2, offset / 3])
@@ -253,8 +253,8 @@ def _model(name: str, **options):
 
 
 def _ctx(seed: int, frame: int, stream: str):
-    from lidarsim_core.builtin_sensors import get_sensor
     from lidarsim_core.noise.base import NoiseContext
+    from lidarsim_core.plugins.resolve import get_sensor
 
     return NoiseContext(get_sensor("livox-mid70-rose"), seed, frame, stream)
 

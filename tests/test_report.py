@@ -16,13 +16,21 @@ import pytest
 from helpers import scenario
 
 import lidarsim_core as ls
-from lidarsim_core.errors import ConfigError
-from lidarsim_core.patterns.coverage import fov_coverage, pattern_for
-from lidarsim_core.patterns.geometry import directions_from_az_el, directions_from_off_axis
+from lidarsim_core.base.errors import ConfigError
+from lidarsim_core.patterns.fov import fov_coverage
+from lidarsim_core.patterns.geometry import (
+    directions_from_az_el,
+    directions_from_off_axis,
+)
+from lidarsim_core.pipeline import simulate
+from lidarsim_core.plugins.resolve import pattern_for
 from lidarsim_core.report.colouring import point_colours
 from lidarsim_core.report.run import load_run
-from lidarsim_core.report.stats import angular_error_components, fit_normal, range_errors
-from lidarsim_core.pipeline import simulate
+from lidarsim_core.report.stats import (
+    angular_error_components,
+    fit_normal,
+    range_errors,
+)
 
 FIGURES_2D = ("fig05_pattern.png", "fig06_angular_error.png", "fig09_range_error.png",
               "coverage.png")
@@ -192,7 +200,7 @@ def test_run_errors_name_the_directory(tmp_path):
 
 
 def test_importing_the_report_package_stays_light():
-    code = ("import sys, lidarsim_core.report, lidarsim_core.cli_report; "
+    code = ("import sys, lidarsim_core.report, lidarsim_core.cli.report; "
             "print(sorted(m for m in ('pyvista', 'vtk', 'matplotlib') if m in sys.modules))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True).stdout
@@ -367,7 +375,7 @@ def test_without_opengl_the_report_keeps_the_2d_figures(demo_dir, tmp_path, monk
 
 
 def test_demo_without_the_viz_extra_says_so_in_one_line(tmp_path, monkeypatch, capsys):
-    from lidarsim_core import cli_report
+    from lidarsim_core.cli import report as cli_report
     from lidarsim_core.report import builder
 
     def missing() -> None:

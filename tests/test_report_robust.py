@@ -19,7 +19,7 @@ def _box_run(directory: Path, *, fmt: str = "npz", duration: float = 0.2) -> Pat
     import trimesh
 
     from lidarsim_core.pipeline import simulate
-    from lidarsim_core.scenario import load_scenario
+    from lidarsim_core.scenario.load import load_scenario
 
     directory.mkdir(parents=True, exist_ok=True)
     bus = trimesh.creation.box(extents=(2.0, 2.0, 2.0))
@@ -61,9 +61,9 @@ def test_fig11_patch_on_a_box_satellite_is_one_plane(tmp_path):
 
 
 def test_plane_ids_group_faces_by_plane_not_by_part():
-    from lidarsim_core.mesh import Mesh
-    from lidarsim_core.pointcloud import POINT_FIELDS, FrameInfo, PointCloud
+    from lidarsim_core.records.pointcloud import POINT_FIELDS, FrameInfo, PointCloud
     from lidarsim_core.report.scene import plane_ids
+    from lidarsim_core.scene.mesh import Mesh
 
     # two coplanar triangles (z = 0) and one at z = 1, all in one part
     vertices = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [1, 1, 0], [0, 0, 1], [1, 0, 1],
@@ -111,7 +111,7 @@ def test_report_reads_runs_in_other_formats(tmp_path, fmt):
 def test_the_most_precise_copy_of_a_frame_is_used(tmp_path):
     from lidarsim_core.pipeline import simulate
     from lidarsim_core.report.run import load_run
-    from lidarsim_core.scenario import load_scenario
+    from lidarsim_core.scenario.load import load_scenario
 
     directory = _box_run(tmp_path / "run", fmt="pcd", duration=0.05)
     simulate(load_scenario(directory / "scenario.yaml")).save(directory / "cloud.npz")

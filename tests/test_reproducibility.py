@@ -74,7 +74,7 @@ def test_chunk_size_does_not_change_a_byte(scene, reference, tmp_path, chunk_ray
 def test_one_ray_pieces_of_a_moving_target_give_the_same_bits():
     """A piece of a single ray sees a moving target through a one-pose transform; it must
     give the bits a longer piece gives (it used to differ in the last bit)."""
-    from lidarsim_core.scenario import scenario_from_dict
+    from lidarsim_core.scenario.load import scenario_from_dict
 
     data = {**SCENARIO, "scan": {"duration_s": 0.004}, "targets": [
         {"name": "tumbler", "mesh": {"model": "box", "options": {"extents_m": [8, 8, 8]}},
@@ -160,9 +160,9 @@ def test_backends_agree_point_for_point_where_their_hits_agree(scene):
 @pytest.fixture(scope="module")
 def sequence(tmp_path_factory) -> tuple[Path, dict[str, str]]:
     """A four-frame sequence file and the tree of its serial dataset."""
-    from lidarsim_core.dataset import generate_dataset
-
     from test_dataset import tree
+
+    from lidarsim_core.dataset import generate_dataset
 
     root = tmp_path_factory.mktemp("sequence")
     data = {**SCENARIO, "scan": {"duration_s": 0.02, "frame_period_s": 0.1, "frames": 4}}
@@ -175,9 +175,9 @@ def sequence(tmp_path_factory) -> tuple[Path, dict[str, str]]:
 @pytest.mark.parametrize("workers", [1, 3])  # test_dataset_dask.py runs 2
 def test_dask_worker_count_does_not_change_a_byte(sequence, tmp_path, workers):
     pytest.importorskip("dask.distributed")
-    from lidarsim_core.dataset import generate_dataset
-
     from test_dataset import tree
+
+    from lidarsim_core.dataset import generate_dataset
 
     path, serial = sequence
     generate_dataset(path, tmp_path / "ds", format="ply", workers=workers)

@@ -139,7 +139,8 @@ def test_tf_and_ground_truth_equal_lidarsim_poses(run):
 def test_livox_custom_msg(tmp_path):
     scenario = ls.demo_scenario(duration_s=0.05, backend="numpy", detail="coarse", seed=3)
     sim = ls.Simulation(scenario)
-    path = write_bag(sim, [0], tmp_path / "livox.mcap", livox=True)
+    path = write_bag([sim.run_frame(0)], tmp_path / "livox.mcap",
+                     target_names=[t.name for t in sim.targets], livox=True)
     cloud = sim.run_frame(0)
     from rosbags.highlevel import AnyReader
 

@@ -4,12 +4,12 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from helpers import datasheet
 from scipy.signal import find_peaks
 
-from lidarsim_core.datasheet import SensorDatasheet
 from lidarsim_core.patterns.geometry import off_axis_angle
 from lidarsim_core.patterns.rose import RosePattern
-from helpers import datasheet
+from lidarsim_core.scenario.datasheet import SensorDatasheet
 
 
 def _pattern(**options) -> RosePattern:

@@ -17,7 +17,12 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from lidarsim_core.errors import ConfigError, OutputError, PatternFileError, UnknownNameError
+from lidarsim_core.base.errors import (
+    ConfigError,
+    OutputError,
+    PatternFileError,
+    UnknownNameError,
+)
 
 SRC = Path(__file__).resolve().parents[1] / "src" / "lidarsim_core"
 
@@ -31,10 +36,10 @@ def _tags(marker: Path) -> list[str]:
 
 
 def _readers():
-    from lidarsim_core.config_io import read_config_file
+    from lidarsim_core.base.config_io import read_config_file
     from lidarsim_core.dataset.config import load_plan
-    from lidarsim_core.datasheet import load_datasheet
-    from lidarsim_core.scenario import load_scenario
+    from lidarsim_core.scenario.datasheet import load_datasheet
+    from lidarsim_core.scenario.load import load_scenario
     from lidarsim_core.trajectories.keyframes import load_keyframe_file
 
     return {"config": read_config_file, "scenario": load_scenario,
@@ -62,7 +67,7 @@ def test_yaml_tags_are_refused_and_never_run(tmp_path, reader):
     ("a: &a [1, *a]\n", "contains itself"),
 ], ids=["alias-bomb", "recursive-alias"])
 def test_yaml_aliases_cannot_blow_up(tmp_path, text, expected):
-    from lidarsim_core.config_io import read_config_file
+    from lidarsim_core.base.config_io import read_config_file
 
     path = tmp_path / "bomb.yaml"
     path.write_text(text)
@@ -71,7 +76,7 @@ def test_yaml_aliases_cannot_blow_up(tmp_path, text, expected):
 
 
 def test_deep_nesting_is_one_line_not_a_crash(tmp_path):
-    from lidarsim_core.config_io import read_config_file
+    from lidarsim_core.base.config_io import read_config_file
 
     path = tmp_path / "deep.json"
     path.write_text('{"x": ' + "[" * 100000 + "]" * 100000 + "}")
@@ -81,7 +86,7 @@ def test_deep_nesting_is_one_line_not_a_crash(tmp_path):
 
 def test_shared_yaml_anchors_still_work(tmp_path):
     """Aliases are refused only when they blow up: reusing a pose is fine."""
-    from lidarsim_core.config_io import read_config_file
+    from lidarsim_core.base.config_io import read_config_file
 
     path = tmp_path / "ok.yaml"
     path.write_text("a: &p {position_m: [1, 2, 3]}\nb: *p\nc:\n  <<: *p\n  extra: 1\n")

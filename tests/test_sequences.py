@@ -14,14 +14,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 import yaml
+from helpers import datasheet
 from scipy.spatial.transform import Rotation, Slerp
 
-from helpers import datasheet
-from lidarsim_core.errors import ConfigError
-from lidarsim_core.groundtruth import (pose_from_record, read_ground_truth,
-                                       sequence_frame_infos, write_ground_truth)
-from lidarsim_core.scenario import ScanConfig, load_scenario, scenario_from_dict
+from lidarsim_core.base.errors import ConfigError
+from lidarsim_core.io.groundtruth import read_ground_truth, write_ground_truth
 from lidarsim_core.pipeline import Simulation
+from lidarsim_core.pipeline.simulation import sequence_frame_infos
+from lidarsim_core.records.groundtruth import pose_from_record
+from lidarsim_core.scenario import ScanConfig
+from lidarsim_core.scenario.load import load_scenario, scenario_from_dict
 from lidarsim_core.trajectories.orbit import mean_motion_from_altitude
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "scenarios"
@@ -157,7 +159,7 @@ def test_pose_file_errors(tmp_path):
     with pytest.raises(ConfigError, match="not a lidarsim-poses"):
         (tmp_path / "x.json").write_text("{}")
         read_ground_truth(tmp_path / "x.json")
-    from lidarsim_core.errors import OutputError
+    from lidarsim_core.base.errors import OutputError
 
     with pytest.raises(OutputError, match="use .json or .csv"):
         write_ground_truth(tmp_path / "poses.txt", infos)

@@ -11,10 +11,10 @@ from helpers import datasheet
 from scipy.special import ndtr
 from scipy.stats import binomtest
 
-from lidarsim_core.errors import ConfigError
+from lidarsim_core.base.errors import ConfigError
 from lidarsim_core.pipeline import Simulation
-from lidarsim_core.scenario import scenario_from_dict
-from lidarsim_core.stages.sun import solar_spectral_irradiance
+from lidarsim_core.pipeline.stages.sun import solar_spectral_irradiance
+from lidarsim_core.scenario.load import scenario_from_dict
 
 RHO = 0.8
 SUN = np.array([-1.0, 0.0, 1.0]) / math.sqrt(2.0)  # up and behind the sensor: lights the plate
@@ -148,7 +148,7 @@ EQUINOX = "2024-03-20T03:06:00Z"
 def test_solar_ephemeris_at_the_equinox_and_solstice():
     from datetime import datetime
 
-    from lidarsim_core.stages.sun import sun_direction_eci
+    from lidarsim_core.pipeline.stages.sun import sun_direction_eci
 
     def at(iso):
         return sun_direction_eci(np.array([datetime.fromisoformat(iso).timestamp()]))[0]
@@ -165,7 +165,8 @@ def test_solar_ephemeris_at_the_equinox_and_solstice():
     (180.0, [-1.0, 0.0, 0.0], True),   # midnight: behind the Earth
 ])
 def test_sun_in_the_lvlh_frame_of_an_equatorial_orbit(u0, expected, eclipse):
-    from lidarsim_core.stages.sun import SunOrbit, sun_in_lvlh
+    from lidarsim_core.pipeline.stages.sun import sun_in_lvlh
+    from lidarsim_core.scenario.sun import SunOrbit
 
     orbit = SunOrbit(epoch=EQUINOX, altitude_km=780, inclination_deg=0.0,
                      argument_of_latitude_deg=u0)

@@ -7,10 +7,14 @@ import math
 import numpy as np
 import pytest
 
-from lidarsim_core.errors import ConfigError
+from lidarsim_core.base.errors import ConfigError
 from lidarsim_core.trajectories.hcw import HCWTrajectory
-from lidarsim_core.trajectories.orbit import (MU_EARTH_M3_S2, OrbitConfig, hcw_propagate,
-                                              mean_motion_from_altitude)
+from lidarsim_core.trajectories.orbit import (
+    MU_EARTH_M3_S2,
+    OrbitConfig,
+    hcw_propagate,
+    mean_motion_from_altitude,
+)
 
 N = 2 * math.pi / 6000.0  # a 100-minute orbit
 

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from lidarsim_core.errors import ConfigError
+from lidarsim_core.base.errors import ConfigError
 from lidarsim_core.trajectories.attitude import look_at
 from lidarsim_core.trajectories.kinematic import ConstantVelocityTrajectory
 

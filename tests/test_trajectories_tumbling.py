@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from lidarsim_core.errors import ConfigError
+from lidarsim_core.base.errors import ConfigError
 from lidarsim_core.trajectories.orbit import mean_motion_from_altitude
 from lidarsim_core.trajectories.tumbling import TorqueFreeTrajectory, TumblingTrajectory
 

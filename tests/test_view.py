@@ -20,7 +20,7 @@ SCENARIO = Path(__file__).parents[1] / "examples" / "envisat_mid70.yaml"
 def _cli(*args: str):
     from typer.testing import CliRunner
 
-    import lidarsim_core.cli_view  # noqa: F401  (registers the command)
+    import lidarsim_core.cli.view  # noqa: F401  (registers the command)
     from lidarsim_core.cli import app
 
     return CliRunner().invoke(app, list(args))

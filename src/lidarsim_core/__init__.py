@@ -17,40 +17,57 @@ from __future__ import annotations
 from importlib import import_module
 from typing import TYPE_CHECKING, Any
 
+from . import _compat
 from ._version import __version__
 
 if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
-    from .builtin_sensors import get_sensor
-    from .datasheet import SensorDatasheet, load_datasheet
-    from .demo import demo_scenario
-    from .errors import (BackendError, ConfigError, LidarsimError, MeshError, PluginError,
-                         UserInputError)
-    from .mesh import Mesh, load_mesh_file
-    from .plugins import get_registry
-    from .pointcloud import FrameInfo, PointCloud
-    from .scenario import Scenario, load_scenario
-    from .pipeline import Simulation, simulate
+    from .base.errors import (
+        BackendError,
+        ConfigError,
+        LidarsimError,
+        MeshError,
+        PluginError,
+        UserInputError,
+    )
     from .io.reader import read
+    from .pipeline.simulation import Simulation, simulate
+    from .plugins.manager import get_registry
+    from .plugins.resolve import get_sensor
+    from .records.pointcloud import FrameInfo, PointCloud
+    from .scenario.datasheet import SensorDatasheet, load_datasheet
+    from .scenario.demo import demo_scenario
+    from .scenario.load import load_scenario
+    from .scenario.model import Scenario
+    from .scene.mesh import Mesh, load_mesh_file
 
+#: Each public name and the module that defines it.
 _LAZY: dict[str, str] = {
-    "get_sensor": "builtin_sensors",
-    "SensorDatasheet": "datasheet", "load_datasheet": "datasheet",
-    "demo_scenario": "demo",
-    "LidarsimError": "errors", "UserInputError": "errors", "ConfigError": "errors",
-    "MeshError": "errors", "PluginError": "errors", "BackendError": "errors",
-    "Mesh": "mesh", "load_mesh_file": "mesh",
-    "get_registry": "plugins",
-    "PointCloud": "pointcloud", "FrameInfo": "pointcloud",
-    "Scenario": "scenario", "load_scenario": "scenario",
-    "Simulation": "pipeline", "simulate": "pipeline",
+    "get_sensor": "plugins.resolve",
+    "SensorDatasheet": "scenario.datasheet", "load_datasheet": "scenario.datasheet",
+    "demo_scenario": "scenario.demo",
+    "LidarsimError": "base.errors", "UserInputError": "base.errors",
+    "ConfigError": "base.errors", "MeshError": "base.errors", "PluginError": "base.errors",
+    "BackendError": "base.errors",
+    "Mesh": "scene.mesh", "load_mesh_file": "scene.mesh",
+    "get_registry": "plugins.manager",
+    "PointCloud": "records.pointcloud", "FrameInfo": "records.pointcloud",
+    "Scenario": "scenario.model", "load_scenario": "scenario.load",
+    "Simulation": "pipeline.simulation", "simulate": "pipeline.simulation",
     "read": "io.reader",
 }
+#: Names whose objects carry or return point clouds: the plugins layer attaches
+#: ``PointCloud.save`` and ``PointCloud.range_image`` (:mod:`.plugins.shortcuts`) first.
+_CLOUDS = {"PointCloud", "FrameInfo", "read", "Simulation", "simulate"}
 
 __all__ = ["__version__", *sorted(_LAZY)]
+
+_compat.install()
 
 
 def __getattr__(name: str) -> Any:
     if name in _LAZY:
+        if name in _CLOUDS:
+            import_module(".plugins", __name__)
         value = getattr(import_module(f".{_LAZY[name]}", __name__), name)
         globals()[name] = value
         return value

@@ -1,5 +1,5 @@
 """``python -m lidarsim_core`` runs the ``lidarsim`` command line."""
 
-from lidarsim_core.cli import main
+from .cli import main
 
 main()

@@ -14,11 +14,11 @@ pose estimators) are classes with
     the name users write in scenarios and on the command line (lower-case, ``[a-z0-9_-]+``);
 ``Options: ClassVar[type[pydantic.BaseModel]]``
     the pydantic model of their options (configure it with ``extra="forbid"`` so unknown keys are
-    rejected; :class:`lidarsim_core.components.ComponentOptions` does that);
+    rejected; :class:`lidarsim_core.base.components.ComponentOptions` does that);
 ``__init__(self, options)``
     taking a validated ``Options`` instance.
 
-See :mod:`lidarsim_core.components` for the base classes of each kind. Third-party plugins are
+See :mod:`lidarsim_core.base.components` for the base classes of each kind. Third-party plugins are
 found through the ``lidarsim`` entry-point group::
 
     [project.entry-points.lidarsim]
@@ -47,7 +47,7 @@ def lidarsim_register_sensors(register: Register) -> None:
     ----------
     register
         Call ``register(source)`` once per sensor, where ``source`` is a
-        :class:`lidarsim_core.datasheet.SensorDatasheet`, a path to a datasheet YAML file, or a
+        :class:`lidarsim_core.scenario.datasheet.SensorDatasheet`, a path to a datasheet YAML file, or a
         path to a directory whose ``*.yaml`` files are all datasheets. Paths are read lazily,
         the first time the catalogue is listed or a sensor is looked up.
 
@@ -115,7 +115,7 @@ def lidarsim_register_target_models(register: Register) -> None:
     Parameters
     ----------
     register
-        Call ``register(cls)`` with a subclass of :class:`lidarsim_core.targets.TargetModel`.
+        Call ``register(cls)`` with a subclass of :class:`lidarsim_core.scene.targets.TargetModel`.
         Scenarios use them as ``mesh: {model: NAME, options: {...}}``.
     """
 

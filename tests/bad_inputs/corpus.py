@@ -8,6 +8,7 @@ repository holds only small text files.
 from __future__ import annotations
 
 import copy
+import dataclasses
 import io
 import json
 import os
@@ -15,7 +16,6 @@ import shutil
 import struct
 import subprocess
 import sys
-import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
@@ -291,24 +291,24 @@ def _api_simulate(argv: list[str]) -> list[Any]:
 
 
 def _api_pattern(argv: list[str]) -> Any:
-    from lidarsim_core.builtin_sensors import get_sensor
-    from lidarsim_core.patterns.coverage import pattern_for
+    from lidarsim_core.plugins.resolve import get_sensor, pattern_for
 
     (sheet,), opts = _options(argv)
     return pattern_for(get_sensor(sheet), source=sheet).rays(0.0, float(opts["--duration"]))
 
 
 def _api_coverage(argv: list[str]) -> Any:
-    from lidarsim_core.builtin_sensors import get_sensor
-    from lidarsim_core.patterns.coverage import fov_coverage, pattern_for
+    from lidarsim_core.patterns.fov import fov_coverage
+    from lidarsim_core.plugins.resolve import get_sensor, pattern_for
 
     (sheet,), opts = _options(argv)
     return fov_coverage(pattern_for(get_sensor(sheet), source=sheet), float(opts["--time"]), 0.5)
 
 
 def _api_poses(argv: list[str]) -> Any:
-    from lidarsim_core.groundtruth import sequence_frame_infos, write_ground_truth
-    from lidarsim_core.scenario import load_scenario
+    from lidarsim_core.io.groundtruth import write_ground_truth
+    from lidarsim_core.pipeline.simulation import sequence_frame_infos
+    from lidarsim_core.scenario.load import load_scenario
 
     (path,), opts = _options(argv)
     infos = sequence_frame_infos(load_scenario(path))

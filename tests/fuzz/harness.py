@@ -190,7 +190,7 @@ def check_contract(case: Case, before: dict[str, str], result: dict[str, Any]) -
     assert not changed, f"a successful case changed its inputs: {changed}\n{where}"
     new = [rel for rel in after if rel not in before]
     # an output, a file inside an output directory, a sidecar, or a missing folder on an
-    # output's path (created by the overwrite policy, lidarsim_core.outputs)
+    # output's path (created by the overwrite policy, lidarsim_core.base.outputs)
     allowed = [rel for rel in new if any(rel == out or rel.startswith(out + "/") or
                                          rel == out + ".json" or out.startswith(rel + "/")
                                          for out in case.outputs)]
@@ -199,9 +199,9 @@ def check_contract(case: Case, before: dict[str, str], result: dict[str, Any]) -
 
 
 def _check_outputs(case: Case, new: list[str], result: dict[str, Any]) -> None:
-    from lidarsim_core.io.sidecar import frame_is_complete
-
     import numpy as np
+
+    from lidarsim_core.io.sidecar import frame_is_complete
 
     command = case.argv[0]
     where = case.describe()

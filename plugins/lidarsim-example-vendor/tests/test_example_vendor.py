@@ -9,7 +9,7 @@ from importlib.resources import files
 import numpy as np
 import pytest
 
-from lidarsim_core.datasheet import load_datasheet
+from lidarsim_core.scenario.datasheet import load_datasheet
 from lidarsim_core.patterns.geometry import off_axis_angle
 from lidarsim_core.testing.patterns import PatternConformance
 from lidarsim_example_vendor.spiral import SpiralPattern

@@ -19,9 +19,9 @@ from typing import Any, ClassVar
 import numpy as np
 from pydantic import Field
 
-from ..components import Component, ComponentOptions
-from ..mesh import Mesh
-from ..vec3 import rowdot
+from ..base.components import Component, ComponentOptions
+from ..geometry.vec3 import rowdot
+from ..scene.mesh import Mesh
 
 
 @dataclass(frozen=True)

@@ -20,13 +20,12 @@ import numpy as np
 from pydantic import Field
 
 from .. import kernels
-from ..chunks import in_pipeline_worker, shared_pool, worker_threads
-from ..errors import BackendError
+from ..base.errors import BackendError
+from ..base.threads import in_pipeline_worker, shared_pool, worker_threads
+from ..geometry.vec3 import add_vector, rowdot, scale_rows
 from ..hookspecs import hookimpl
-from ..mesh import Mesh
-from ..vec3 import add_vector, rowdot, scale_rows
+from ..scene.mesh import Mesh
 from .base import BackendOptions, Hits, RayBackend, refine_on_faces
-
 
 #: Fewest rays handed to a thread at once (smaller parts cost more in dispatch than they gain).
 _MIN_PART = 4096

@@ -8,7 +8,7 @@ import numpy as np
 from pydantic import Field
 
 from ..hookspecs import hookimpl
-from ..mesh import Mesh
+from ..scene.mesh import Mesh
 from .base import BackendOptions, Hits, RayBackend
 
 

@@ -17,11 +17,11 @@ from typing import TYPE_CHECKING, Any, Callable, Iterable
 
 import numpy as np
 
-from ..errors import ConfigError, UserInputError
+from ..base.errors import ConfigError, UserInputError
 
 if TYPE_CHECKING:
-    from ..pipeline import Simulation
-    from ..scenario import Scenario
+    from ..pipeline.simulation import Simulation
+    from ..scenario.model import Scenario
 
 #: ``--format`` value that selects bags.
 BAG_FORMAT = "mcap"
@@ -119,7 +119,9 @@ def write_sequence_bag(sim: "Simulation", frames: int, path: Path, *, livox: boo
         if on_frame is not None:
             on_frame(len(cloud))
 
-    write_bag(sim, range(frames), path, overwrite=True, livox=livox, on_frame=frame_done)
+    write_bag((sim.run_frame(f) for f in range(frames)), path,
+              target_names=[t.name for t in sim.targets], overwrite=True, livox=livox,
+              on_frame=frame_done)
     record = {"format": SIDECAR_FORMAT, "version": SIDECAR_VERSION, "file": path.name,
               "exporter": BAG_FORMAT, "livox": livox, "frames": frames,
               "points": sum(counts), "points_per_frame": counts,

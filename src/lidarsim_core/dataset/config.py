@@ -31,10 +31,12 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from ..config_io import read_config_file, validate_model
-from ..errors import ConfigError
-from ..limits import MAX_SEED
-from ..scenario import Scenario, scenario_from_dict
+from ..base.config_io import read_config_file
+from ..base.errors import ConfigError
+from ..base.limits import MAX_SEED
+from ..base.validation import validate_model
+from ..scenario.load import scenario_from_dict
+from ..scenario.model import Scenario
 
 SPLIT_NAMES = ("train", "val", "test")
 _NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")

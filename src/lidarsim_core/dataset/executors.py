@@ -14,7 +14,7 @@ import threading
 from contextlib import ExitStack, contextmanager
 from typing import Any, Callable, Iterable, Iterator
 
-from ..errors import ConfigError
+from ..base.errors import ConfigError
 from .frames import FrameJob, run_frame_job, simulate_frame_job, write_frame_job
 
 OnResult = Callable[[dict[str, Any]], None]

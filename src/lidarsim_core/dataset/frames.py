@@ -18,6 +18,7 @@ from typing import Any
 
 from ..io.base import write_points_file
 from ..io.points import DEFAULT_SPOOL_MEMORY, PointSpool
+from ..plugins.resolve import exporter_named
 
 #: Built simulations kept per process (one per sequence being worked on).
 CACHE_SIZE = 4
@@ -25,7 +26,7 @@ CACHE_SIZE = 4
 _simulations: "OrderedDict[str, Any]" = OrderedDict()
 _stats = {"simulations_built": 0, "frames": 0}
 #: Frames whose metadata are computed together, ahead of their simulation: the trajectories
-#: are evaluated once per block (:meth:`~lidarsim_core.pipeline.Simulation.frame_infos`, the
+#: are evaluated once per block (:meth:`~lidarsim_core.pipeline.simulation.Simulation.frame_infos`, the
 #: same bits as one frame at a time). Each is handed out once, to its frame's job.
 INFO_BLOCK = 64
 _infos: "OrderedDict[tuple[str, int], Any]" = OrderedDict()
@@ -75,8 +76,8 @@ class FrameJob:
 def _simulation(job: FrameJob) -> Any:
     import json
 
-    from ..scenario import scenario_from_dict
-    from ..pipeline import Simulation
+    from ..pipeline.simulation import Simulation
+    from ..scenario.load import scenario_from_dict
 
     key = job.cache_key
     if key in _simulations:
@@ -130,11 +131,8 @@ def write_frame_job(job: FrameJob, spool: PointSpool, info: Any) -> dict[str, An
     dict
         ``sequence``, ``frame``, ``file`` (name), ``points``, ``rays``, ``bytes``, ``sha256``.
     """
-    from ..plugins import get_registry
-
     with spool:
-        exporter_cls = get_registry().get("exporter", job.exporter, field="format")
-        exporter = exporter_cls.from_config(job.exporter_options, field="exporter_options")
+        exporter = exporter_named(job.exporter, job.exporter_options)
         path = Path(job.path)
         path.parent.mkdir(parents=True, exist_ok=True)
         record = write_points_file(spool, path, exporter=exporter)

@@ -30,22 +30,44 @@ from typing import Any, Iterator
 import numpy as np
 import yaml
 
-from ..errors import ConfigError, OutputError
-from ..io.base import atomic_output, write_text_atomic
+from ..base.atomic import atomic_output, write_text_atomic
+from ..base.errors import ConfigError, OutputError
 from ..io.points import DEFAULT_SPOOL_MEMORY
 from ..io.sidecar import frame_is_complete
-from ..plugins import get_registry
-from ..scenario import Scenario, scenario_from_dict
-from .bags import (BAG_FORMAT, BAG_NAME, BagFormat, check_bag_sequences,
-                   write_sequence_bag)
+from ..plugins.manager import get_registry
+from ..scenario.load import scenario_from_dict
+from ..scenario.model import Scenario
+from .bags import (
+    BAG_FORMAT,
+    BAG_NAME,
+    BagFormat,
+    check_bag_sequences,
+    write_sequence_bag,
+)
 from .config import DatasetPlan, SequencePlan, load_plan, scenario_variant
 from .executors import run_dask, run_serial
 from .frames import FrameJob
-from .identity import (dataset_identity, differences, exporter_identity, normalize_scenario,
-                       package_versions, sequence_identity)
+from .identity import (
+    dataset_identity,
+    differences,
+    exporter_identity,
+    normalize_scenario,
+    package_versions,
+    sequence_identity,
+)
 from .inputs import INPUTS_DIR, InputCopier
-from .layout import (DATASET_COPY, FRAMES_DIR, LOCK, MANIFEST, POSES, SCENARIO_COPY, SPLITS,
-                     SPLITS_DIR, frame_relpath, sequence_root)
+from .layout import (
+    DATASET_COPY,
+    FRAMES_DIR,
+    LOCK,
+    MANIFEST,
+    POSES,
+    SCENARIO_COPY,
+    SPLITS,
+    SPLITS_DIR,
+    frame_relpath,
+    sequence_root,
+)
 from .lock import dataset_lock, remove_stale_parts
 from .manifest import read_manifest, write_manifest
 from .poses import PosesFile
@@ -138,7 +160,7 @@ def check_dataset_dir(root: Path) -> None:
     """Refuse an output directory that cannot be a dataset before anything is created: a
     file, a name too long, or a place (the directory, or its nearest existing parent) that
     is read-only or not writable."""
-    from ..guard import describe_os_error
+    from ..base.oserrors import describe_os_error
 
     try:
         if root.exists() and not root.is_dir():
@@ -175,7 +197,7 @@ def validate_sequences(plan: DatasetPlan) -> None:
 
     Sequences that differ only by seed share one check.
     """
-    from ..pipeline import Simulation
+    from ..pipeline.simulation import Simulation
 
     seen: set[str] = set()
     for seq in plan.sequences:
@@ -252,7 +274,7 @@ def _cloud_path(frame: int, suffix: str) -> str:
 
 
 def _prepare_sequence(seq: _Sequence, suffix: str) -> None:
-    from ..pipeline import Simulation
+    from ..pipeline.simulation import Simulation
 
     _write_text(seq.copy_path, yaml.safe_dump(seq.data, sort_keys=False))
     seq.scenario = scenario_from_dict(seq.data, source=seq.copy_path)

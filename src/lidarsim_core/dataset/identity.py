@@ -21,15 +21,16 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from .._version import __version__
-from ..builtin_sensors import get_sensor
-from ..config_io import CONFIG_SUFFIXES
-from ..errors import ConfigError
-from ..registry import Registry
-from ..scenario import Scenario, scenario_from_dict
+from ..base.config_io import CONFIG_SUFFIXES
+from ..base.errors import ConfigError
+from ..plugins.registry import Registry
+from ..plugins.resolve import get_sensor
+from ..scenario.load import scenario_from_dict
+from ..scenario.model import Scenario
 
 if TYPE_CHECKING:
     from ..io.base import Exporter
-    from ..pipeline import Simulation
+    from ..pipeline.simulation import Simulation
 
 #: Packages whose versions can change the bytes of a frame.
 NUMERIC_PACKAGES = ("numpy", "scipy", "trimesh", "embreex")
@@ -51,7 +52,7 @@ def normalize_scenario(scenario: Scenario, registry: Registry) -> Scenario:
 
     The result keeps the original source file, so relative mesh paths still resolve.
     """
-    from ..pipeline import resolve_backend
+    from ..plugins.resolve import resolve_backend
 
     data = scenario.model_dump(mode="json")
     sheet = scenario.sensor.datasheet

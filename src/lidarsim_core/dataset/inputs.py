@@ -17,10 +17,10 @@ import shutil
 from pathlib import Path
 from typing import Any
 
-from ..errors import ConfigError
-from ..io.base import atomic_output
+from ..base.atomic import atomic_output
+from ..base.errors import ConfigError
 from ..io.sidecar import sha256_file
-from ..scenario import Scenario
+from ..scenario.model import Scenario
 
 INPUTS_DIR = "inputs"
 

@@ -13,7 +13,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterable, Iterator
 
-from ..errors import OutputError
+from ..base.errors import OutputError
 from .layout import LOCK
 
 try:

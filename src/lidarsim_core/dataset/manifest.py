@@ -15,10 +15,12 @@ import os
 from pathlib import Path
 from typing import IO, Any, Callable, Iterator
 
-from ..io.base import atomic_output
+from ..base.atomic import atomic_output
 
 MANIFEST_FORMAT = "lidarsim-dataset"
 MANIFEST_VERSION = 1
+# words of every manifest already written: they keep the module path of the time
+# (lidarsim_core.rng, now lidarsim_core.noise.rng; the old path still imports)
 SEED_SCHEME = ("Noise of ray k in frame f of a sequence with seed s is drawn from NumPy's "
                "Philox-4x64 keyed by (s, f, noise stream name) with its counter set from k "
                "(lidarsim_core.rng): every frame is a pure function of the normalised scenario "
@@ -27,8 +29,8 @@ SEED_SCHEME = ("Noise of ray k in frame f of a sequence with seed s is drawn fro
 
 def read_manifest(path: Path) -> dict[str, Any] | None:
     """The manifest at ``path``, or ``None`` if there is none (or it is unreadable)."""
-    from ..config_io import read_bytes_file
-    from ..errors import UserInputError
+    from ..base.config_io import read_bytes_file
+    from ..base.errors import UserInputError
 
     if not os.path.lexists(path):
         return None

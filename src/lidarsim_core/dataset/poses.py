@@ -1,11 +1,11 @@
 """The ground-truth poses file of a sequence, streamed frame by frame.
 
-The content is exactly :func:`lidarsim_core.groundtruth.ground_truth` (same header, same
-per-frame records from :func:`~lidarsim_core.groundtruth.frame_record`, read back by
-:func:`~lidarsim_core.groundtruth.read_ground_truth`), but written one block of frames at a time
+The content is exactly :func:`lidarsim_core.records.groundtruth.ground_truth` (same header, same
+per-frame records from :func:`~lidarsim_core.records.groundtruth.frame_record`, read back by
+:func:`~lidarsim_core.io.groundtruth.read_ground_truth`), but written one block of frames at a time
 so that a sequence of any length needs constant memory; each block's poses are computed
-together (:meth:`~lidarsim_core.pipeline.Simulation.frame_infos`,
-:func:`~lidarsim_core.groundtruth.frame_records`: the same bits, about a tenth of the time).
+together (:meth:`~lidarsim_core.pipeline.simulation.Simulation.frame_infos`,
+:func:`~lidarsim_core.records.groundtruth.frame_records`: the same bits, about a tenth of the time).
 """
 
 from __future__ import annotations
@@ -17,11 +17,11 @@ import tempfile
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Callable
 
-from ..groundtruth import frame_records, ground_truth
-from ..io.base import atomic_output
+from ..base.atomic import atomic_output
+from ..records.groundtruth import frame_records, ground_truth
 
 if TYPE_CHECKING:
-    from ..pipeline import Simulation
+    from ..pipeline.simulation import Simulation
 
 _SPOOL_BYTES = 8 * 2 ** 20
 #: Frames whose poses are computed together (bounded memory for any sequence length).

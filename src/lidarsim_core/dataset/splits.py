@@ -17,8 +17,8 @@ import hashlib
 import math
 from typing import Any
 
-from ..errors import ConfigError
-from ..scenario import Scenario
+from ..base.errors import ConfigError
+from ..scenario.model import Scenario
 from .config import SPLIT_NAMES, SplitFractions
 from .identity import canonical_sha256
 

@@ -6,13 +6,19 @@ HTML report. The baselines ``icp`` and ``fpfh_ransac_icp`` need Open3D (extra ``
 nothing heavy is imported here.
 """
 
-from .base import (EstimationFailed, FrameInput, PoseEstimate, PoseEstimator, TargetModelData,
-                   function_estimator)
+from .base import (
+                   EstimationFailed,
+                   FrameInput,
+                   PoseEstimate,
+                   PoseEstimator,
+                   TargetModelData,
+                   function_estimator,
+)
 from .metrics import pose_errors
 from .run import EvaluationResult, evaluate_dataset
 from .symmetry import Symmetry, SymmetryGroup, parse_symmetry
 
-#: Modules registered as built-in plugins (see ``lidarsim_core.plugins``).
+#: Modules registered as built-in plugins (see ``lidarsim_core.plugins.manager``).
 BUILTIN_MODULES: tuple[str, ...] = ("baselines",)
 
 __all__ = ["EstimationFailed", "EvaluationResult", "FrameInput", "PoseEstimate", "PoseEstimator",

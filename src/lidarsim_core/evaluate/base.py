@@ -7,7 +7,7 @@ frame order. It receives a :class:`FrameInput` (the frame's points in the sensor
 their per-point timestamps and the whole point record, the target's model in its body frame,
 and the previous frame's estimate) and returns a :class:`PoseEstimate`: the target body
 frame's pose in the sensor frame, ``x_sensor = R · x_body + t`` (the convention of the
-ground-truth files, :mod:`lidarsim_core.groundtruth`). It reports failure by returning
+ground-truth files, :mod:`lidarsim_core.records.groundtruth`). It reports failure by returning
 :meth:`PoseEstimate.failure`; an exception or a non-finite pose is recorded as a failed frame
 by the harness, which goes on with the next frame.
 """
@@ -21,10 +21,10 @@ from typing import TYPE_CHECKING, Any, Callable, ClassVar, Mapping
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..components import Component, ComponentOptions
+from ..base.components import Component, ComponentOptions
 
 if TYPE_CHECKING:  # pragma: no cover
-    from ..mesh import Mesh
+    from ..scene.mesh import Mesh
 
 
 class TargetModelData:
@@ -35,7 +35,7 @@ class TargetModelData:
     name
         The target's name in the scenario (its label in the point record).
     mesh
-        The :class:`~lidarsim_core.mesh.Mesh` the simulation traced, in body coordinates
+        The :class:`~lidarsim_core.scene.mesh.Mesh` the simulation traced, in body coordinates
         (metres), loaded by the same code (a mesh file with its scale, or a procedural model
         with its options).
     """
@@ -94,7 +94,7 @@ class FrameInput:
         The frame's scan interval (s from the scenario epoch).
     points
         The frame's point record: column name → array (every column of
-        :data:`lidarsim_core.pointcloud.POINT_FIELDS`), only returns the sensor reported
+        :data:`lidarsim_core.records.pointcloud.POINT_FIELDS`), only returns the sensor reported
         (``detected == 1``). Coordinates are in the sensor frame at each point's emission time.
     model
         The target's model (:class:`TargetModelData`).
@@ -275,7 +275,7 @@ def function_estimator(name: str, function: Callable[[FrameInput, Any], Any], *,
         returns a :class:`PoseEstimate`, a 4×4 body → sensor matrix, or ``None`` for "no
         estimate for this frame".
     options
-        Its pydantic options model (a :class:`~lidarsim_core.components.ComponentOptions`
+        Its pydantic options model (a :class:`~lidarsim_core.base.components.ComponentOptions`
         subclass); none by default.
     summary
         One line for ``lidarsim plugins`` (default: the function's docstring's first line).

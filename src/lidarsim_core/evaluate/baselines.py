@@ -20,7 +20,7 @@ import numpy as np
 from pydantic import Field
 from scipy.spatial.transform import Rotation
 
-from ..components import ComponentOptions
+from ..base.components import ComponentOptions
 from ..hookspecs import hookimpl
 from .base import FrameInput, PoseEstimate, PoseEstimator, TargetModelData
 from .extras import require

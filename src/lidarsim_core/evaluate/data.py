@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
-from ..errors import ConfigError
+from ..base.errors import ConfigError
 from .base import TargetModelData
 
 
@@ -46,7 +46,7 @@ class SequenceData:
     @cached_property
     def poses(self) -> dict[str, Any]:
         """The sequence's ground-truth file."""
-        from ..groundtruth import read_ground_truth
+        from ..io.groundtruth import read_ground_truth
 
         data = read_ground_truth(self.poses_path)
         frames = data.get("frames")
@@ -75,12 +75,12 @@ class SequenceData:
     def model(self, index: int) -> TargetModelData:
         """The mesh of target ``index`` in its body frame, loaded as the simulation loads it."""
         if index not in self._model_cache:
-            from ..pipeline import Simulation
-            from ..plugins import get_registry
-            from ..scenario import load_scenario
+            from ..plugins.manager import get_registry
+            from ..plugins.resolve import target_mesh
+            from ..scenario.load import load_scenario
 
             scenario = load_scenario(self.scenario_path)
-            mesh = Simulation._mesh(get_registry(), scenario, index)
+            mesh = target_mesh(get_registry(), scenario, index)
             self._model_cache[index] = TargetModelData(scenario.targets[index].name, mesh)
         return self._model_cache[index]
 
@@ -117,7 +117,7 @@ class SequenceData:
 
 
 def _manifest(root: Path) -> dict[str, Any]:
-    from ..config_io import read_json_file
+    from ..base.config_io import read_json_file
     from ..dataset.layout import MANIFEST
     from ..dataset.manifest import MANIFEST_FORMAT
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import importlib
 from typing import Any
 
-from ..errors import UserInputError
+from ..base.errors import UserInputError
 
 EXTRA = "eval"
 

@@ -14,8 +14,8 @@ from typing import Any
 
 import numpy as np
 
-from ..groundtruth import CONVENTION
-from ..io.base import write_text_atomic
+from ..base.atomic import write_text_atomic
+from ..records.groundtruth import CONVENTION
 from .metrics import METRICS
 
 ESTIMATES_FORMAT = "lidarsim-estimates"

@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from ..io.base import atomic_output, write_text_atomic
+from ..base.atomic import atomic_output, write_text_atomic
 from .extras import require
 from .metrics import METRICS
 

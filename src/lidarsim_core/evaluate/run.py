@@ -22,11 +22,17 @@ from typing import Any, Callable, Iterable, Mapping
 import numpy as np
 
 from .._version import __version__
-from ..errors import ConfigError, OutputError
+from ..base.errors import ConfigError, OutputError
 from .base import EstimationFailed, FrameInput, PoseEstimate, PoseEstimator
+from .data import (
+    SequenceData,
+    frame_record_name,
+    load_json,
+    open_dataset,
+    read_frame_columns,
+    safe_name,
+)
 from .extras import require
-from .data import (SequenceData, frame_record_name, load_json, open_dataset, read_frame_columns,
-                   safe_name)
 from .metrics import pose_errors
 from .symmetry import Symmetry, SymmetryGroup
 
@@ -69,7 +75,7 @@ class EvaluationResult:
 
 def _estimator(name: str, options: Mapping[str, Any] | None, registry: Any
                ) -> tuple[PoseEstimator, str]:
-    from ..plugins import get_registry
+    from ..plugins.manager import get_registry
 
     registry = registry or get_registry()
     entry = registry.entry("pose_estimator", name, field="--estimator")
@@ -94,7 +100,7 @@ def _prepare_out(out: Path, config: dict[str, Any]) -> None:
                               source=out)
         return
     out.mkdir(parents=True, exist_ok=True)
-    from ..io.base import write_text_atomic
+    from ..base.atomic import write_text_atomic
 
     write_text_atomic(path, json.dumps(config, indent=1, sort_keys=True) + "\n")
 
@@ -184,8 +190,14 @@ class _Progress:
         self.failures = 0
         if not quiet:
             from rich.console import Console
-            from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn,
-                                       TimeElapsedColumn, TimeRemainingColumn)
+            from rich.progress import (
+                BarColumn,
+                MofNCompleteColumn,
+                Progress,
+                TextColumn,
+                TimeElapsedColumn,
+                TimeRemainingColumn,
+            )
 
             self.bar = Progress(TextColumn("[bold]evaluate"), BarColumn(), MofNCompleteColumn(),
                                 TextColumn("{task.fields[failures]} failed"),
@@ -293,7 +305,7 @@ def evaluate_dataset(dataset: str | Path, out: str | Path, estimator: str,
     total = sum(len(seq.frames) for seq in sequences)
     done = sum(1 for seq in sequences for e in seq.frames
                if _stored(dirs[seq.name] / frame_record_name(e.frame), seq.name, e.frame))
-    from ..io.base import write_text_atomic
+    from ..base.atomic import write_text_atomic
 
     records: dict[str, list[dict[str, Any]]] = {}
     evaluated = 0

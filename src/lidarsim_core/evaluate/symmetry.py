@@ -20,8 +20,8 @@ from typing import Iterable, Literal
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
-from ..components import first_validation_error
-from ..errors import ConfigError
+from ..base.errors import ConfigError
+from ..base.validation import first_validation_error
 
 #: Most elements a finite symmetry group may have (the icosahedral group has 60).
 MAX_GROUP_SIZE = 240

@@ -46,13 +46,13 @@ import numpy as np
 from pydantic import Field
 
 from .._version import __version__
-from ..components import ComponentOptions
-from ..errors import ConfigError, OutputError
+from ..base.components import ComponentOptions
+from ..base.errors import ConfigError, OutputError
 from ..hookspecs import hookimpl
 from .base import Exporter
 
 if TYPE_CHECKING:
-    from ..pointcloud import PointCloud
+    from ..records.pointcloud import PointCloud
     from .points import PointSource
 
 #: Standard fields of point format 6 filled from the point record (besides x, y, z, part).
@@ -232,7 +232,7 @@ def read_las_columns(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str,
     (or the extra bytes), ``timestamp`` from the GPS time, ``intensity`` from the exact
     ``reflectivity`` extra bytes when there are some, the rest from the extra bytes.
     """
-    from ..pointcloud import POINT_FIELDS
+    from ..records.pointcloud import POINT_FIELDS
 
     laspy = _laspy()
     try:
@@ -278,7 +278,7 @@ def read_las(path: str | Path) -> "PointCloud":
     ConfigError
         If the file lacks lidarsim's metadata VLR.
     """
-    from ..pointcloud import FrameInfo, PointCloud
+    from ..records.pointcloud import FrameInfo, PointCloud
 
     columns, metadata = read_las_columns(path)
     if metadata is None:

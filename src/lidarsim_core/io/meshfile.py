@@ -1,6 +1,6 @@
 """Target meshes as files: the exact geometry a simulation scanned, in the target's body frame.
 
-:func:`export_mesh` writes a :class:`~lidarsim_core.mesh.Mesh` with its parts kept apart, in a
+:func:`export_mesh` writes a :class:`~lidarsim_core.scene.mesh.Mesh` with its parts kept apart, in a
 format chosen by the suffix:
 
 =======  ==============================================================  ===================
@@ -26,9 +26,9 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import OutputError
-from ..mesh import Mesh
-from .base import atomic_output
+from ..base.atomic import atomic_output
+from ..base.errors import OutputError
+from ..scene.mesh import Mesh
 
 #: Suffixes :func:`export_mesh` writes.
 MESH_EXPORT_SUFFIXES = (".obj", ".ply", ".glb", ".stl")

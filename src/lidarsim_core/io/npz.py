@@ -15,7 +15,7 @@ from ..hookspecs import hookimpl
 from .base import Exporter
 
 if TYPE_CHECKING:
-    from ..pointcloud import PointCloud
+    from ..records.pointcloud import PointCloud
     from .points import PointSource
 
 
@@ -48,7 +48,7 @@ def read_npz(path: Any) -> "PointCloud":
     """Load a cloud written by :class:`NpzExporter` (no pickles are read)."""
     import json
 
-    from ..pointcloud import POINT_FIELDS, FrameInfo, PointCloud
+    from ..records.pointcloud import POINT_FIELDS, FrameInfo, PointCloud
 
     with np.load(path, allow_pickle=False) as data:
         columns = {k: data[k] for k in POINT_FIELDS}

@@ -14,7 +14,7 @@ import string
 from pathlib import Path
 from typing import Iterable
 
-from ..errors import OutputError
+from ..base.errors import OutputError
 
 _SPEC = re.compile(r"^0?[0-9]{0,3}d?$")
 

@@ -31,14 +31,14 @@ from typing import IO, TYPE_CHECKING, Any, Literal
 import numpy as np
 from pydantic import Field
 
-from ..components import ComponentOptions
-from ..errors import ConfigError, OutputError
+from ..base.components import ComponentOptions
+from ..base.errors import ConfigError, OutputError
 from ..hookspecs import hookimpl
 from .base import Exporter
 from .headermeta import metadata_from_lines, metadata_lines
 
 if TYPE_CHECKING:
-    from ..pointcloud import PointCloud
+    from ..records.pointcloud import PointCloud
     from .points import PointSource
 
 #: Point-record column → PCD field name, where PCL/ROS use another name.
@@ -131,7 +131,7 @@ def read_pcd_columns(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str,
     ConfigError
         If the file is not a binary PCD.
     """
-    from ..pointcloud import POINT_FIELDS
+    from ..records.pointcloud import POINT_FIELDS
 
     path = Path(path)
     header: dict[str, list[str]] = {}
@@ -178,7 +178,7 @@ def read_pcd(path: str | Path) -> "PointCloud":
     ConfigError
         If the file is not a binary PCD with lidarsim frame metadata.
     """
-    from ..pointcloud import FrameInfo, PointCloud
+    from ..records.pointcloud import FrameInfo, PointCloud
 
     columns, metadata = read_pcd_columns(path)
     if metadata is None:

@@ -35,13 +35,12 @@ from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..errors import ConfigError, OutputError
+from ..base.errors import ConfigError, OutputError
 from ..hookspecs import hookimpl
 from .base import Exporter
 from .headermeta import metadata_from_lines, metadata_lines
 
 if TYPE_CHECKING:
-    from ..pointcloud import PointCloud
     from .points import PointSource
 
 #: Prefix of the header comments holding the frame metadata.
@@ -75,7 +74,7 @@ def ply_type(dtype: np.dtype | str) -> tuple[str, str]:
 def ply_layout(fields: dict[str, np.dtype] | None = None) -> list[tuple[str, str, str]]:
     """``(column, PLY type, written dtype)`` for every column (default: the point record)."""
     if fields is None:
-        from ..pointcloud import POINT_FIELDS
+        from ..records.pointcloud import POINT_FIELDS
 
         fields = {k: np.dtype(v) for k, v in POINT_FIELDS.items()}
     return [(name, *_FIXED_TYPES.get(name, ply_type(dtype))) for name, dtype in fields.items()]

@@ -6,7 +6,7 @@ headers need them), and the columns are read back in chunks of any size, as many
 exporter wants (NumPy archives are written one column at a time, the others row chunk by row
 chunk). Two implementations:
 
-* :class:`CloudPoints` wraps an in-memory :class:`~lidarsim_core.pointcloud.PointCloud`;
+* :class:`CloudPoints` wraps an in-memory :class:`~lidarsim_core.records.pointcloud.PointCloud`;
 * :class:`PointSpool` collects the chunks of a running simulation, in memory up to a byte budget
   and in an anonymous temporary file beyond it, so memory stays bounded whatever the number of
   points in the frame. Chunks come back re-cut to the size the exporter asks for, so the bytes
@@ -22,7 +22,7 @@ from typing import IO, Iterable, Iterator, Sequence
 
 import numpy as np
 
-from ..pointcloud import POINT_FIELDS, FrameInfo, PointCloud
+from ..records.pointcloud import POINT_FIELDS, FrameInfo, PointCloud
 
 #: Points per chunk handed to exporters unless they ask for another size.
 DEFAULT_CHUNK_POINTS = 65536

@@ -1,6 +1,6 @@
 """One reader for every point-cloud format lidarsim writes: :func:`read`.
 
-``ls.read("cloud.ply")`` gives back a :class:`~lidarsim_core.pointcloud.PointCloud` with its
+``ls.read("cloud.ply")`` gives back a :class:`~lidarsim_core.records.pointcloud.PointCloud` with its
 frame metadata, whatever the exporter: PLY, PCD, LAS/LAZ and NPZ carry the metadata inside the
 file, CSV only in the sidecar JSON (``<file name>.json``), which is used whenever the file has
 none of its own. Columns come back with the point record's dtypes (:data:`POINT_FIELDS`);
@@ -17,8 +17,8 @@ from typing import Any, Callable
 
 import numpy as np
 
-from ..errors import ConfigError
-from ..pointcloud import POINT_FIELDS, FrameInfo, PointCloud
+from ..base.errors import ConfigError
+from ..records.pointcloud import POINT_FIELDS, FrameInfo, PointCloud
 
 #: Suffixes :func:`read` knows (those of the built-in exporters).
 READ_SUFFIXES = (".ply", ".pcd", ".las", ".laz", ".npz", ".csv")

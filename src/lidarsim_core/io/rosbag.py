@@ -36,15 +36,14 @@ import os
 import secrets
 import shutil
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Callable, Sequence
+from typing import TYPE_CHECKING, Any, Callable, Iterable, Sequence
 
 import numpy as np
 
-from ..errors import OutputError
+from ..base.errors import OutputError
 
 if TYPE_CHECKING:
-    from ..pipeline import Simulation
-    from ..pointcloud import FrameInfo, PointCloud
+    from ..records.pointcloud import FrameInfo, PointCloud
 
 #: TF frame of the scenario's scene (the LVLH frame for orbital scenarios).
 SCENE_FRAME = "scene"
@@ -201,7 +200,7 @@ def livox_custom_msg(store: Any, cloud: "PointCloud", frame_id: str = SENSOR_FRA
 def tf_message(store: Any, frame: "FrameInfo") -> Any:
     """``tf2_msgs/msg/TFMessage`` at frame start: scene → sensor and scene → every target
     (the poses of ``lidarsim poses``, quaternions with w >= 0)."""
-    from ..groundtruth import frame_record
+    from ..records.groundtruth import frame_record
 
     types = store.types
     record = frame_record(frame)
@@ -221,7 +220,7 @@ def tf_message(store: Any, frame: "FrameInfo") -> Any:
 def ground_truth_messages(store: Any, frame: "FrameInfo") -> list[Any]:
     """``geometry_msgs/msg/PoseStamped`` of every target in the sensor frame at frame start
     (the ``q_target_in_sensor`` / ``r_target_in_sensor_m`` of ``lidarsim poses``)."""
-    from ..groundtruth import frame_record
+    from ..records.groundtruth import frame_record
 
     types = store.types
     out = []
@@ -249,31 +248,32 @@ def _check_target_names(names: Sequence[str]) -> None:
 
 def check_bag_output(path: str | Path, *, overwrite: bool = False) -> Path:
     """Raise :class:`OutputError` unless a bag can be written to ``path`` (the one overwrite
-    policy of :mod:`lidarsim_core.outputs`); returns it."""
-    from ..outputs import check_file
+    policy of :mod:`lidarsim_core.base.outputs`); returns it."""
+    from ..base.outputs import check_file
 
     check_file(path, overwrite=overwrite)
     return Path(path)
 
 
-def write_bag(sim: "Simulation", frames: Sequence[int], path: str | Path, *,
+def write_bag(clouds: Iterable["PointCloud"], path: str | Path, *, target_names: Sequence[str],
               overwrite: bool = False, livox: bool = False,
               on_frame: Callable[[int, "PointCloud"], None] | None = None) -> Path:
-    """Simulate ``frames`` of ``sim`` into one rosbag2 MCAP file at ``path``.
+    """Write the frames ``clouds`` yields (e.g. a simulation's, one at a time) into one
+    rosbag2 MCAP file at ``path``.
 
     The bag is assembled in a hidden temporary directory beside ``path`` and its MCAP file is
     renamed onto ``path`` only when complete: an error or interrupt leaves nothing behind.
 
     Parameters
     ----------
-    sim
-        The simulation (its scenario gives frames, poses and names).
-    frames
-        Frame indices, in the order written.
+    clouds
+        The frames' point clouds, in the order written (consumed one at a time).
     path
         The ``.mcap`` file to write.
     overwrite
         Replace an existing file.
+    target_names
+        The targets' names (one ground-truth topic each).
     livox
         Also write ``livox_ros_driver2/msg/CustomMsg`` on ``/livox/lidar``.
     on_frame
@@ -287,12 +287,12 @@ def write_bag(sim: "Simulation", frames: Sequence[int], path: str | Path, *,
     _rosbags()
     from rosbags.rosbag2 import StoragePlugin, Writer
 
-    from ..outputs import make_parent
+    from ..base.outputs import make_parent
 
     path = check_bag_output(path, overwrite=overwrite)
     make_parent(path)  # a missing folder is created, as for every output
     parent = path.parent if str(path.parent) else Path(".")
-    target_names = list(sim.frame_info(frames[0]).target_names) if frames else []
+    target_names = list(target_names)
     _check_target_names(target_names)
     store = typestore(livox)
     work = parent / f".{path.name}.{secrets.token_hex(6)}.part"
@@ -309,8 +309,7 @@ def write_bag(sim: "Simulation", frames: Sequence[int], path: str | Path, *,
             truth = [topic(GROUND_TRUTH_TOPIC.format(target=name),
                            "geometry_msgs/msg/PoseStamped") for name in target_names]
             custom = topic(LIVOX_TOPIC, "livox_ros_driver2/msg/CustomMsg") if livox else None
-            for f in frames:
-                cloud = sim.run_frame(f)
+            for cloud in clouds:
                 info = cloud.frame
                 stamp = _ns(info.t_start)
 
@@ -325,7 +324,7 @@ def write_bag(sim: "Simulation", frames: Sequence[int], path: str | Path, *,
                 if custom is not None:
                     put(custom, livox_custom_msg(store, cloud))
                 if on_frame is not None:
-                    on_frame(f, cloud)
+                    on_frame(info.frame, cloud)
         files = list((work / path.stem).glob("*.mcap"))
         if len(files) != 1:
             raise OutputError(f"the bag writer produced {len(files)} MCAP files, expected 1",

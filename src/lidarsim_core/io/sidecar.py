@@ -21,8 +21,8 @@ import json
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ..config_io import read_json_file
-from ..errors import ConfigError
+from ..base.config_io import read_json_file
+from ..base.errors import ConfigError
 
 if TYPE_CHECKING:
     from .base import Exporter
@@ -61,7 +61,7 @@ def sidecar_record(path: str | Path, points: "PointSource", exporter: "Exporter"
 
 def write_sidecar(path: str | Path, record: dict[str, Any]) -> Path:
     """Write ``record`` atomically to the sidecar of ``path``; returns the sidecar's path."""
-    from .base import write_text_atomic
+    from ..base.atomic import write_text_atomic
 
     target = sidecar_path(path)
     text = json.dumps(record, indent=1, sort_keys=True) + "\n"

@@ -4,7 +4,7 @@ The pipeline is written in vectorised NumPy, and that code stays the reference. 
 installed, a few steps that NumPy cannot do at the speed of an Embree ray cast run as compiled
 loops instead:
 
-* :mod:`.philox`: the counter-based random numbers of :mod:`lidarsim_core.rng`, bit for bit
+* :mod:`.philox`: the counter-based random numbers of :mod:`lidarsim_core.noise.rng`, bit for bit
   the same words as NumPy's ``Philox`` (integer arithmetic), but generated only for the rays
   asked for;
 * :mod:`.rotation`: the seed paper's angular error (two rotations about axes perpendicular to
@@ -35,7 +35,7 @@ from __future__ import annotations
 import functools
 import os
 
-from ..errors import ConfigError
+from ..base.errors import ConfigError
 
 #: Values accepted by ``LIDARSIM_KERNELS``.
 MODES = ("auto", "numba", "numpy")
@@ -82,10 +82,10 @@ def warm_up() -> bool:
     import numpy as np
 
     from .cull import cull_posed, motion_bound
-    from .poses import chain_matrices, look_at_matrices
-    from .philox import ray_uniforms
-    from .raycast import embree_rays, refine_hits
     from .patterns import cycle_rays, lissajous_directions, spinning_directions
+    from .philox import ray_uniforms
+    from .poses import chain_matrices, look_at_matrices
+    from .raycast import embree_rays, refine_hits
     from .risley import risley_directions
     from .rose import rose_directions
     from .rotation import rotate_two_angles

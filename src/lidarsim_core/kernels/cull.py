@@ -1,5 +1,5 @@
 """Conservative culling of pulses that cannot reach any target (numba; see
-:mod:`lidarsim_core.cull`).
+:mod:`lidarsim_core.pipeline.cull`).
 
 A pulse is kept when its nominal ray, in a target's body frame, meets a leaf of that target's
 box tree with every box grown by ``grow`` (the largest distance by which the flown ray, or any
@@ -15,7 +15,6 @@ import math
 
 import numpy as np
 from numba import njit
-
 
 
 @njit(inline="always", cache=True)

@@ -1,6 +1,6 @@
 """Philox-4×64-10 in numba, word for word the generator behind NumPy's ``Philox``.
 
-:func:`lidarsim_core.rng.ray_uniforms` gives ray ``i`` the counter blocks ``i·B + b + 1``
+:func:`lidarsim_core.noise.rng.ray_uniforms` gives ray ``i`` the counter blocks ``i·B + b + 1``
 (``b < B``) of a stream's Philox generator. NumPy can only produce a contiguous run of blocks,
 so uniforms for scattered rays (the hits of a frame) cost as much as the whole index range;
 this kernel computes each ray's blocks directly. All arithmetic is on 64-bit integers, so the
@@ -61,12 +61,12 @@ def to_unit(word):  # noqa: ANN001, ANN201
 
 @njit(nogil=True, cache=True)
 def ray_uniforms(key, ray_index, draws):  # noqa: ANN001, ANN201
-    """(N, draws) uniforms of :func:`lidarsim_core.rng.ray_uniforms` for ``ray_index``.
+    """(N, draws) uniforms of :func:`lidarsim_core.noise.rng.ray_uniforms` for ``ray_index``.
 
     Parameters
     ----------
     key
-        (2,) uint64 Philox key of the stream (:func:`lidarsim_core.rng.stream_key`).
+        (2,) uint64 Philox key of the stream (:func:`lidarsim_core.noise.rng.stream_key`).
     ray_index
         (N,) int64 non-negative ray indices.
     draws

@@ -1,9 +1,9 @@
-"""Per-ray rotations of the built-in trajectories in numba (:mod:`lidarsim_core.posing`).
+"""Per-ray rotations of the built-in trajectories in numba (:mod:`lidarsim_core.geometry.posing`).
 
 A chain ``R(τ) = F0 · Rot(a1, w1 τ) · F1 · … · Rot(aK, wK τ) · FK`` of fixed rotations and
 rotations at constant rates about fixed axes covers the closed-form tumbling motion (with the
 LVLH frame's turn) and constant angular velocity. Quaternions are scalar-last (SciPy's
-order); the arithmetic is :meth:`lidarsim_core.posing.RotationChain.matrices_numpy`'s,
+order); the arithmetic is :meth:`lidarsim_core.geometry.posing.RotationChain.matrices_numpy`'s,
 operation for operation, with :func:`.trig.sincos` (within 2 ulp of the C library's sine and
 cosine, inlined: a C library call costs 10–15 ns) so the matrices agree with the NumPy ones
 to a few ulp.

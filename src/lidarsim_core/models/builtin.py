@@ -7,10 +7,10 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import Field
 
-from ..components import ComponentOptions
+from ..base.components import ComponentOptions
 from ..hookspecs import hookimpl
-from ..mesh import Mesh, merge_parts
-from ..targets import TargetModel
+from ..scene.mesh import Mesh, merge_parts
+from ..scene.targets import TargetModel
 
 
 class EnvisatOptions(ComponentOptions):
@@ -21,7 +21,7 @@ class EnvisatOptions(ComponentOptions):
                               "(~100k), or an integer tessellation factor.")
 
 
-#: Default material of every Envisat part (names of :data:`lidarsim_core.materials.MATERIAL_LIBRARY`
+#: Default material of every Envisat part (names of :data:`lidarsim_core.scene.materials.MATERIAL_LIBRARY`
 #: entries, whose sources say how their values were estimated). The assignment follows
 #: Envisat's appearance in ESA imagery: gold/amber MLI blankets over the bus and instruments,
 #: silicon cells on the array front, a dark film on the ASAR face, white dishes; the radiators'

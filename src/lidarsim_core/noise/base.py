@@ -8,7 +8,7 @@ A noise model acts at one or both of two stages of the pipeline:
 ``perturb_returns``
     after ray casting, on what the sensor reports (the seed paper's range error, Eq. 4).
 
-All random numbers come from :func:`lidarsim_core.rng.ray_normals` / ``ray_uniforms`` keyed by
+All random numbers come from :func:`lidarsim_core.noise.rng.ray_normals` / ``ray_uniforms`` keyed by
 the model's stream name and the ray index, so noise is reproducible and chunk-independent.
 """
 
@@ -18,9 +18,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..components import Component
-from ..datasheet import SensorDatasheet
-from ..rng import ray_normals, ray_uniforms
+from ..base.components import Component
+from ..scenario.datasheet import SensorDatasheet
+from .rng import ray_normals, ray_uniforms
 
 
 @dataclass(frozen=True)
@@ -78,8 +78,8 @@ class GaussianRayRotation:
     ``sigma_rad == 0``: the model leaves rays alone. Otherwise it turns each ray by two
     angles ``ndtri(u1)·σ`` and ``ndtri(u2)·σ``, where ``u1, u2`` are the first two uniforms
     of ``ctx.uniforms(ray_index, 2)``: the seed paper's angular error. Every such draw is
-    within :data:`lidarsim_core.rng.MAX_ABS_NORMAL` σ, so the pipeline knows how far a pulse
-    can turn and skips those that cannot reach a target (:mod:`lidarsim_core.cull`).
+    within :data:`lidarsim_core.noise.rng.MAX_ABS_NORMAL` σ, so the pipeline knows how far a pulse
+    can turn and skips those that cannot reach a target (:mod:`lidarsim_core.pipeline.cull`).
     """
 
     sigma_rad: float

@@ -17,10 +17,16 @@ from typing import Any
 import numpy as np
 from pydantic import Field
 
-from ..components import ComponentOptions
-from ..hookspecs import hookimpl
 from .. import kernels
-from .base import GaussianRayRotation, NoiseContext, NoiseModel, Returns, perpendicular_basis
+from ..base.components import ComponentOptions
+from ..hookspecs import hookimpl
+from .base import (
+    GaussianRayRotation,
+    NoiseContext,
+    NoiseModel,
+    Returns,
+    perpendicular_basis,
+)
 
 
 class AngularOptions(ComponentOptions):

@@ -25,7 +25,7 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import Field, model_validator
 
-from ..components import ComponentOptions
+from ..base.components import ComponentOptions
 from ..hookspecs import hookimpl
 from .base import NoiseContext, NoiseModel, Returns
 

@@ -14,9 +14,9 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from ..components import Component
-from ..errors import UserInputError
-from ..datasheet import SensorDatasheet
+from ..base.components import Component
+from ..base.errors import UserInputError
+from ..scenario.datasheet import SensorDatasheet
 from .geometry import off_axis_angle
 
 
@@ -36,7 +36,7 @@ class RayBatch:
         (N,) int16 emitter/channel id.
     poses
         The sensor's and targets' poses at these rays, once the pipeline has looked them up
-        (:func:`lidarsim_core.posing.with_piece_poses`), else None.
+        (:func:`lidarsim_core.pipeline.posing.with_piece_poses`), else None.
     """
 
     index: np.ndarray
@@ -85,7 +85,7 @@ class ScanPattern(Component):
         ConfigError
             Naming ``source`` and the option when an option is unknown or invalid.
         """
-        from ..config_io import validate_model
+        from ..base.validation import validate_model
 
         options = {**sensor.scan_pattern.options, **(overrides or {})}
         opts = validate_model(cls.Options, options, source=source,

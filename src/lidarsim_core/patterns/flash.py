@@ -21,7 +21,7 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import Field
 
-from ..components import ComponentOptions
+from ..base.components import ComponentOptions
 from ..hookspecs import hookimpl
 from .base import RayBatch
 from .geometry import directions_from_az_el

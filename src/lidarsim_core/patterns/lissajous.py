@@ -19,8 +19,8 @@ import numpy as np
 from pydantic import Field
 
 from .. import kernels
-from ..components import ComponentOptions
-from ..errors import ConfigError
+from ..base.components import ComponentOptions
+from ..base.errors import ConfigError
 from ..hookspecs import hookimpl
 from .base import RayBatch, ScanPattern
 from .geometry import directions_from_az_el

@@ -20,8 +20,8 @@ from typing import Any, Literal
 import numpy as np
 from pydantic import Field, model_validator
 
-from ..components import ComponentOptions
-from ..errors import ConfigError
+from ..base.components import ComponentOptions
+from ..base.errors import ConfigError
 from ..hookspecs import hookimpl
 from .base import RayBatch
 from .geometry import directions_from_az_el

@@ -36,8 +36,8 @@ import numpy as np
 from pydantic import Field
 
 from .. import kernels
-from ..components import ComponentOptions
-from ..errors import ConfigError, PluginError
+from ..base.components import ComponentOptions
+from ..base.errors import ConfigError, PluginError
 from ..hookspecs import hookimpl
 from .base import RayBatch
 from .geometry import directions_from_az_el, off_axis_angle

@@ -20,7 +20,7 @@ import numpy as np
 from pydantic import Field
 
 from .. import kernels
-from ..components import ComponentOptions
+from ..base.components import ComponentOptions
 from ..hookspecs import hookimpl
 from .base import RayBatch, ScanPattern
 from .geometry import directions_from_off_axis

@@ -20,7 +20,7 @@ import numpy as np
 from pydantic import Field, model_validator
 
 from .. import kernels
-from ..components import ComponentOptions
+from ..base.components import ComponentOptions
 from ..hookspecs import hookimpl
 from .base import RayBatch
 from .geometry import directions_from_az_el

@@ -15,8 +15,8 @@ from typing import Any
 import numpy as np
 from pydantic import Field
 
-from ..components import ComponentOptions
-from ..errors import PatternFileError
+from ..base.components import ComponentOptions
+from ..base.errors import PatternFileError
 from ..hookspecs import hookimpl
 from .base import RayBatch
 from .geometry import directions_from_az_el

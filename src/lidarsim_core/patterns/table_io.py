@@ -15,7 +15,7 @@ Formats
 
 Times are taken relative to the first row and must not decrease. Every problem (wrong columns,
 non-numeric or non-finite values, no rows, angles out of range, times going backwards) raises a
-:class:`~lidarsim_core.errors.PatternFileError` naming the file, the column and the line.
+:class:`~lidarsim_core.base.errors.PatternFileError` naming the file, the column and the line.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ from typing import Literal
 
 import numpy as np
 
-from ..errors import PatternFileError
+from ..base.errors import PatternFileError
 
 LIVOX_COLUMNS = ("Time/s", "Azimuth/deg", "Zenith/deg")
 GENERIC_COLUMNS = ("t_s", "azimuth_deg", "elevation_deg", "channel")
@@ -106,7 +106,7 @@ def read_pattern_table(path: str | Path, fmt: TableFormat = "auto") -> PatternTa
     PatternFileError
         Naming the file, the column and the line of the first problem.
     """
-    from ..config_io import check_input_file
+    from ..base.config_io import check_input_file
 
     path = Path(path)
     # the bounded reader's checks: missing, devices, FIFOs, link loops, directories, size

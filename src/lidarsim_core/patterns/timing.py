@@ -18,8 +18,7 @@ from typing import Any
 import numpy as np
 
 from .. import kernels
-
-from ..errors import ConfigError
+from ..base.errors import ConfigError
 from .base import ScanPattern
 
 #: Times closer than this fraction of a cycle to a cycle start count as that start, so that an

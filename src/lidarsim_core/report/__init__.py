@@ -16,8 +16,15 @@ PosixPath('demo-out/report/report.html')
 
 from __future__ import annotations
 
-from .builder import FIGURE_FILES, Figure, Report, VizMissing, build_report, require_viz, \
-    write_report
+from .builder import (
+                      FIGURE_FILES,
+                      Figure,
+                      Report,
+                      VizMissing,
+                      build_report,
+                      require_viz,
+                      write_report,
+)
 from .run import Run, load_run
 
 __all__ = ["FIGURE_FILES", "Figure", "Report", "Run", "VizMissing", "build_report", "load_run",

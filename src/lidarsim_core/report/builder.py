@@ -11,8 +11,8 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import LidarsimError
-from ..io.base import write_text_atomic
+from ..base.atomic import write_text_atomic
+from ..base.errors import LidarsimError
 from .run import Run, load_run
 
 #: File names of the figures, by key.
@@ -150,7 +150,7 @@ def write_report(run_dir: str | Path, out_dir: str | Path | None = None, *,
         When the run directory, its scenario or an option is invalid.
     """
     require_viz()
-    from ..outputs import check_files
+    from ..base.outputs import check_files
 
     run_dir = Path(run_dir)
     out = Path(out_dir) if out_dir is not None else run_dir / "report"
@@ -168,7 +168,7 @@ def build_report(run: Run, out: Path, *, colour_by: str = "part",
                  coverage_time_s: float | None = None, cell_deg: float = 0.5,
                  three_d: bool = True, scenario: str | Path | None = None) -> Report:
     """Write the figures, ``report.json`` and ``report.html`` of a loaded :class:`Run`."""
-    from ..patterns.coverage import fov_coverage
+    from ..patterns.fov import fov_coverage
     from . import charts
     from .stats import angular_error_components, fit_normal, range_errors
 

@@ -15,8 +15,12 @@ from typing import Any
 import numpy as np
 
 from ..patterns.base import ScanPattern
-from ..patterns.geometry import az_el_from_directions, directions_from_az_el, \
-    directions_from_off_axis, off_axis_angle
+from ..patterns.geometry import (
+    az_el_from_directions,
+    directions_from_az_el,
+    directions_from_off_axis,
+    off_axis_angle,
+)
 from .render import save_figure
 from .stats import NormalFit
 

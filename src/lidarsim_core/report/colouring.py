@@ -6,8 +6,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ConfigError
-from ..pointcloud import PointCloud
+from ..base.errors import ConfigError
+from ..records.pointcloud import PointCloud
 
 #: Names accepted by ``--color-by`` besides any numeric column of the point record.
 COLOUR_ALIASES = {"part": "part", "range": "range", "time": "timestamp", "intensity": "intensity"}

@@ -7,7 +7,7 @@ import html
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from ..io.base import write_text_atomic
+from ..base.atomic import write_text_atomic
 
 if TYPE_CHECKING:
     from .builder import Report

@@ -17,8 +17,9 @@ from typing import Any
 
 import numpy as np
 
-from ..pipeline import Simulation
-from ..scenario import Scenario, scenario_from_dict
+from ..pipeline.simulation import Simulation
+from ..scenario.load import scenario_from_dict
+from ..scenario.model import Scenario
 
 #: A second-surface mirror made optically flat (RMS slope 0.02°), e.g. an OSR panel.
 FLAT_OSR = {"diffuse_reflectivity": 0.02, "specular_reflectance": 0.85,

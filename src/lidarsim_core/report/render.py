@@ -20,8 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from ..errors import LidarsimError
-from ..io.base import atomic_output
+from ..base.atomic import atomic_output
+from ..base.errors import LidarsimError
 
 #: VTK's variable naming the OpenGL render-window class it should create.
 WINDOW_VARIABLE = "VTK_DEFAULT_OPENGL_WINDOW"

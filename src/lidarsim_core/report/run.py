@@ -23,20 +23,21 @@ from pathlib import Path
 
 import numpy as np
 
-from ..datasheet import SensorDatasheet
-from ..errors import ConfigError
+from ..base.errors import ConfigError
+from ..geometry.poses import Poses
 from ..io.reader import read
-from ..pointcloud import PointCloud
-from ..poses import Poses
-from ..scenario import Scenario, load_scenario
-from ..pipeline import Simulation
+from ..pipeline.simulation import Simulation
+from ..records.pointcloud import PointCloud
+from ..scenario.datasheet import SensorDatasheet
+from ..scenario.load import load_scenario
+from ..scenario.model import Scenario
 
 #: Scenario file names looked for in a run directory, in order.
 SCENARIO_NAMES = ("scenario.yaml", "scenario.yml", "scenario.toml", "scenario.json")
 
 
 def pose_from_record(record: dict[str, list[float]]) -> Poses:
-    """A one-element :class:`~lidarsim_core.poses.Poses` from a frame-metadata pose record."""
+    """A one-element :class:`~lidarsim_core.geometry.poses.Poses` from a frame-metadata pose record."""
     from scipy.spatial.transform import Rotation
 
     return Poses(np.asarray(record["translation_m"], dtype=np.float64)[None, :],
@@ -116,7 +117,7 @@ def read_run_clouds(directory: Path) -> dict[Path, PointCloud]:
     Files that are not lidarsim clouds are skipped; an ``.npz`` that says it is one (it holds
     ``frame_json``) but cannot be read is an error naming it, not a silent gap in the run.
     """
-    from ..config_io import check_input_file
+    from ..base.config_io import check_input_file
 
     order = list(CLOUD_READERS)
     paths = sorted((p for p in directory.iterdir()

@@ -21,10 +21,10 @@ from typing import Any
 
 import numpy as np
 
-from ..datasheet import SensorDatasheet
-from ..mesh import Mesh
+from ..geometry.poses import Poses
 from ..patterns.geometry import directions_from_az_el, directions_from_off_axis
-from ..poses import Poses
+from ..scenario.datasheet import SensorDatasheet
+from ..scene.mesh import Mesh
 from .colouring import PointColours, part_colour, point_colours, short_part_names
 from .render import new_plotter, save_plotter
 from .run import Run

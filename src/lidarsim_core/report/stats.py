@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..patterns.geometry import directions_from_az_el
-from ..pointcloud import PointCloud
+from ..records.pointcloud import PointCloud
 
 
 @dataclass(frozen=True)

@@ -32,9 +32,13 @@ import numpy as np
 import pytest
 
 from ..backends.base import Hits, RayBackend
-from ..mesh import Mesh
+from ..scene.mesh import Mesh
 from .ray_cases import (
-    RayCase, canonical_cases, distance_to_triangle_edges, mesh_scale, reference_intersect,
+    RayCase,
+    canonical_cases,
+    distance_to_triangle_edges,
+    mesh_scale,
+    reference_intersect,
     satellite_rays,
 )
 
@@ -52,7 +56,7 @@ _SHOWN = 6  # offending rays listed in a failure message
 @functools.lru_cache(maxsize=1)
 def satellite_mesh() -> Mesh:
     """The built-in Envisat model at medium detail (~10k triangles)."""
-    from ..plugins import get_registry
+    from ..plugins.manager import get_registry
 
     model = get_registry().get("target_model", "envisat")
     return model.from_config({"detail": "medium"}).mesh()
@@ -193,7 +197,7 @@ class BackendConformance:
             return cls.backend_class
         if not cls.backend_name:
             raise TypeError(f"{cls.__name__} sets neither backend_name nor backend_class")
-        from ..plugins import get_registry
+        from ..plugins.manager import get_registry
 
         return get_registry().get("ray_backend", cls.backend_name)
 
@@ -304,7 +308,7 @@ class BackendConformance:
     def test_agrees_with_other_backends(self, backend: RayBackend) -> None:
         """On Envisat, every other available registered backend gives the same hits, faces
         and distances, except within the two backends' stated tolerances."""
-        from ..plugins import get_registry
+        from ..plugins.manager import get_registry
 
         registry = get_registry()
         others = []

@@ -60,7 +60,7 @@ def _concat(parts: list[RayBatch]) -> RayBatch:
 class PatternConformance:
     """Subclass with ``sensor`` (and optionally ``pattern_options``), or override ``pattern``."""
 
-    #: Catalogue name, datasheet path, or :class:`~lidarsim_core.datasheet.SensorDatasheet`.
+    #: Catalogue name, datasheet path, or :class:`~lidarsim_core.scenario.datasheet.SensorDatasheet`.
     sensor: ClassVar[Any] = None
     #: Overrides of the datasheet's ``scan_pattern.options``.
     pattern_options: ClassVar[dict[str, Any]] = {}
@@ -72,9 +72,8 @@ class PatternConformance:
     @pytest.fixture
     def pattern(self) -> ScanPattern:
         """The pattern under test (override to test an unregistered or parametrised pattern)."""
-        from ..builtin_sensors import get_sensor
-        from ..datasheet import SensorDatasheet
-        from ..patterns.coverage import pattern_for
+        from ..plugins.resolve import get_sensor, pattern_for
+        from ..scenario.datasheet import SensorDatasheet
 
         if self.sensor is None:
             pytest.skip("set `sensor` or override the `pattern` fixture")

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..backends.base import Hits
-from ..mesh import Mesh
+from ..scene.mesh import Mesh
 
 #: Sides of an axis-aligned box in face order: side ``s`` owns faces ``2s`` and ``2s + 1``.
 BOX_SIDES: tuple[tuple[int, float], ...] = ((0, -1.0), (0, 1.0), (1, -1.0), (1, 1.0),

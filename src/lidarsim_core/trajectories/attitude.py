@@ -21,8 +21,8 @@ from pydantic import ConfigDict, Discriminator, Field, Tag, model_validator
 from scipy.spatial.transform import Rotation
 
 from .. import kernels
-from ..components import ComponentOptions
-from ..poses import PoseConfig
+from ..base.components import ComponentOptions
+from ..scenario.pose import PoseConfig
 
 Vec3 = tuple[float, float, float]
 

@@ -3,15 +3,15 @@
 from __future__ import annotations
 
 from abc import abstractmethod
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from ..components import Component
-from ..poses import Poses
+from ..base.components import Component
+from ..geometry.poses import Poses
 
 if TYPE_CHECKING:
-    from ..posing import PoseMatrices
+    from ..geometry.posing import PoseMatrices
 
 
 class Trajectory(Component):
@@ -21,7 +21,7 @@ class Trajectory(Component):
     the scenario's epoch (the start of the first frame). A subclass may also implement
     :meth:`pose_matrices` (the same poses as arrays, without SciPy rotations, for the hot
     path); the pipeline uses it only when it is defined by the class that defines
-    :meth:`poses_at` or a subclass of it (:func:`lidarsim_core.posing.has_fast_path`).
+    :meth:`poses_at` or a subclass of it (:func:`lidarsim_core.trajectories.matrices.has_fast_path`).
     """
 
     #: True when the pose never changes, so the pipeline can skip per-ray look-ups.
@@ -31,9 +31,19 @@ class Trajectory(Component):
     def poses_at(self, t: np.ndarray) -> Poses:
         """Poses at times ``t`` ((N,) float64 seconds); returns N poses."""
 
+    def check_span(self, t0: float, t1: float, *, source: Any, field: str) -> None:
+        """Refuse a time span ``[t0, t1]`` whose poses would cost an unbounded amount of work
+        (:mod:`lidarsim_core.base.limits`); most trajectories are closed forms and accept any.
+
+        Raises
+        ------
+        ConfigError
+            Naming ``source`` and ``field`` (the trajectory's own fields below it).
+        """
+
     def pose_matrices(self, t: np.ndarray) -> "PoseMatrices":
         """Poses at times ``t`` as (N, 3) positions and (N, 3, 3) rotation matrices (default:
         from :meth:`poses_at`)."""
-        from ..posing import PoseMatrices
+        from ..geometry.posing import PoseMatrices
 
         return PoseMatrices.from_poses(self.poses_at(t))

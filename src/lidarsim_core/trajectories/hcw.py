@@ -49,12 +49,12 @@ from typing import Annotated, Any, Literal, Mapping, Union
 import numpy as np
 from pydantic import ConfigDict, Field, model_validator
 
-from ..components import ComponentOptions
-from ..config_io import validate_model
-from ..errors import ConfigError
+from ..base.components import ComponentOptions
+from ..base.errors import ConfigError
+from ..base.validation import validate_model
+from ..geometry.poses import Poses
+from ..geometry.posing import PoseMatrices
 from ..hookspecs import hookimpl
-from ..poses import Poses
-from ..posing import PoseMatrices
 from .attitude import AttitudeConfig, LookAtAttitude
 from .base import Trajectory
 from .orbit import OrbitConfig, hcw_positions, hcw_propagate

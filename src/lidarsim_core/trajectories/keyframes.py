@@ -36,13 +36,15 @@ import numpy as np
 from pydantic import ConfigDict, Field, model_validator
 from scipy.spatial.transform import Rotation
 
-from ..components import ComponentOptions
-from ..config_io import read_config_file, read_text_file, validate_model
-from ..limits import check
-from ..errors import ConfigError
+from ..base.components import ComponentOptions
+from ..base.config_io import read_config_file, read_text_file
+from ..base.errors import ConfigError
+from ..base.limits import check
+from ..base.validation import validate_model
+from ..geometry.poses import Poses
+from ..geometry.posing import PoseMatrices, quat_matrices, quat_multiply
 from ..hookspecs import hookimpl
-from ..posing import PoseMatrices, quat_matrices, quat_multiply
-from ..poses import PoseConfig, Poses
+from ..scenario.pose import PoseConfig
 from .attitude import AttitudeConfig
 from .base import Trajectory
 

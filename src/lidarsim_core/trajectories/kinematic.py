@@ -28,9 +28,10 @@ import numpy as np
 from pydantic import ConfigDict, Field
 from scipy.spatial.transform import Rotation
 
+from ..geometry.poses import Poses
+from ..geometry.posing import PoseMatrices, RotationChain
 from ..hookspecs import hookimpl
-from ..poses import PoseConfig, Poses
-from ..posing import PoseMatrices, RotationChain
+from ..scenario.pose import PoseConfig
 from .base import Trajectory
 
 

@@ -28,7 +28,7 @@ import numpy as np
 from pydantic import ConfigDict, Field, model_validator
 from scipy.spatial.transform import Rotation
 
-from ..components import ComponentOptions
+from ..base.components import ComponentOptions
 
 #: Earth's gravitational parameter GM (m³/s², IERS/WGS-84 value).
 MU_EARTH_M3_S2 = 3.986004418e14

@@ -7,9 +7,10 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..geometry.poses import Poses
+from ..geometry.posing import PoseMatrices
 from ..hookspecs import hookimpl
-from ..poses import PoseConfig, Poses
-from ..posing import PoseMatrices
+from ..scenario.pose import PoseConfig
 from .base import Trajectory
 
 

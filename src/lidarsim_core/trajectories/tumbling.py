@@ -50,17 +50,22 @@ from __future__ import annotations
 import math
 import threading
 from abc import abstractmethod
-from typing import Any, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from pydantic import ConfigDict, Field, field_validator, model_validator
 from scipy.spatial.transform import Rotation
 
+from ..base.limits import check, size_text
+from ..geometry.poses import Poses
+from ..geometry.posing import PoseMatrices, RotationChain, quat_matrices, quat_multiply
 from ..hookspecs import hookimpl
-from ..poses import PoseConfig, Poses
-from ..posing import PoseMatrices, RotationChain, quat_matrices, quat_multiply
+from ..scenario.pose import PoseConfig
 from .base import Trajectory
 from .orbit import OrbitConfig, lvlh_from_inertial
+
+if TYPE_CHECKING:
+    pass
 
 Vec3 = tuple[float, float, float]
 
@@ -257,6 +262,24 @@ class TorqueFreeTrajectory(_RigidBodyTrajectory):
     name = "torque_free"
     Options = TorqueFreeOptions
     options: TorqueFreeOptions
+
+    def check_span(self, t0: float, t1: float, *, source: Any, field: str) -> None:
+        """Refuse a span over which the integration would not end: the body rate never
+        exceeds ``sqrt(ωᵀ I ω / I_min)`` (kinetic energy is conserved), and the integrator
+        works in pieces from ``t_ref_s``; the angle turned through those pieces bounds its
+        work (limit ``integration_rad``)."""
+        opts = self.options
+        inertia = np.asarray(self._inertia, dtype=np.float64)
+        omega = np.radians(np.asarray(opts.angular_velocity_deg_s, dtype=np.float64))
+        energy2 = float(omega @ inertia @ omega)
+        omega_max = math.sqrt(max(energy2, 0.0) / float(np.linalg.eigvalsh(inertia)[0]))
+        piece = self.PIECE_S
+        reach = max(abs(t0 - opts.t_ref_s), abs(t1 - opts.t_ref_s))
+        pieces = math.floor(reach / piece) + 1 if math.isfinite(reach) else math.inf
+        check("integration_rad", omega_max * piece * pieces, source=source,
+              field=f"{field}.angular_velocity_deg_s",
+              what=f"a body rate up to {math.degrees(omega_max):g} °/s integrated over "
+                   f"{size_text(pieces)} × {piece:g} s")
 
     #: Length of each cached integration piece (s). Pieces cover ``[k·E, (k+1)·E]`` after
     #: ``t_ref_s`` (and the mirror image before it), whatever order times are asked in, so the

@@ -1,7 +1,7 @@
 """A plugin registering a sensor under a built-in sensor's name (bad-input corpus)."""
-from lidarsim_core.datasheet import load_datasheet
+from lidarsim_core.base.resources import package_data_dir
 from lidarsim_core.hookspecs import hookimpl
-from lidarsim_core.plugins import package_data_dir
+from lidarsim_core.scenario.datasheet import load_datasheet
 
 
 @hookimpl

@@ -2,7 +2,7 @@
 
 from pydantic import Field
 
-from lidarsim_core.components import ComponentOptions
+from lidarsim_core.base.components import ComponentOptions
 from lidarsim_core.hookspecs import hookimpl
 
 

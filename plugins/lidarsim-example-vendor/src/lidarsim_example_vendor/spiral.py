@@ -12,7 +12,7 @@ import math
 import numpy as np
 from pydantic import Field
 
-from lidarsim_core.components import ComponentOptions
+from lidarsim_core.base.components import ComponentOptions
 from lidarsim_core.patterns.base import RayBatch, ScanPattern
 from lidarsim_core.patterns.geometry import directions_from_off_axis
 

@@ -1,0 +1,37 @@
+"""OS errors in words: one line naming the path(s) and the reason.
+"""
+
+from __future__ import annotations
+
+import errno
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    pass
+
+
+def _describe(error: OSError) -> str:
+    """The reason an OS call failed on a path, in words (errno-specific where it matters)."""
+    reasons = {errno.ENOENT: "not found", errno.ELOOP: "is a symbolic link loop",
+               errno.ENAMETOOLONG: "file name too long", errno.EACCES: "permission denied",
+               errno.EPERM: "operation not permitted", errno.ENOTDIR: "a parent is not a "
+               "directory", errno.EISDIR: "is a directory", errno.ENOSPC: "no space left on "
+               "the device", errno.EROFS: "read-only file system", errno.EDQUOT: "disk quota "
+               "exceeded", errno.EIO: "input/output error", errno.EFBIG: "file too large",
+               errno.EEXIST: "already exists", errno.EMFILE: "too many open files"}
+    return reasons.get(error.errno or 0) or " ".join((error.strerror or str(error)).split())
+
+
+# ---- the error boundary: output paths, OS errors, numerical warnings ------------------------
+def describe_os_error(exc: OSError) -> str:
+    """The reason of an OS error in words ("no space left on the device", ...)."""
+    from .oserrors import _describe
+
+    return _describe(exc)
+
+
+def os_error_line(exc: OSError) -> str:
+    """One line for an OS error: the path (both, for a rename) and the reason."""
+    paths = [str(p) for p in (exc.filename, exc.filename2) if p is not None]
+    reason = describe_os_error(exc)
+    return f"{' → '.join(paths)}: {reason}" if paths else reason

@@ -1,0 +1,351 @@
+"""The realistic scenes of ``lidarsim bench``: whole simulation against bare Embree, per scene.
+
+Each scene is a scenario this project exists for (:data:`SUITE`): a tumbling Envisat seen by
+the Risley MID-70 from an HCW hold, a fly-around with a moving and turning sensor, a VLP-16
+circling the target, the 256 × 256 flash, beam divergence with detection and dual returns, two
+targets, a ~1M-triangle mesh, and the static demo they are compared with. For each scene, in
+interleaved rounds (:func:`lidarsim_core.bench.timing.interleaved_best`):
+
+* ``simulate`` / ``simulate_1thread``: ``Simulation.run_frame`` of frame 0, emitted rays per
+  second (pulses; with beam divergence each pulse is K cast rays), on all threads and on one;
+* ``bare_embree`` / ``bare_embree_1thread``: plain embreex in float32 casting exactly the rays
+  the simulation casts (every pulse, or every sub-ray, in each target's body frame), with no
+  lidarsim code around it, per emitted ray;
+* ``simulate_over_bare`` / ``simulate_over_bare_1thread``: their ratios (1 would be a
+  simulation as fast as Embree alone on the same rays);
+* ``stages_1thread``: nanoseconds per emitted ray of each stage on one thread (pattern, poses,
+  cull, cast, measurement, record; :func:`suite_stages`).
+
+:func:`bench_dataset` compares a serial ``lidarsim dataset`` run on a tumbling sequence with
+simulating the same frames in memory.
+"""
+
+from __future__ import annotations
+
+import tempfile
+from pathlib import Path
+from typing import Any, Callable
+
+import numpy as np
+
+from ..base.threads import worker_threads
+from ..pipeline.cast import process_piece, pulse_frames
+from .timing import bare_embree_probe, interleaved_best, threads_env, with_threads
+
+#: Envisat's LVLH tumbling in 2013 (2.67 °/s about the orbit anti-normal), as in
+#: ``examples/scenarios/envisat_tumbling_hold.yaml``.
+ENVISAT_2013 = {"kind": "tumbling", "position_m": [0, 0, 0], "euler_deg": [-90, 0, -90],
+                "symmetry_axis": [0, 1, 0], "angular_momentum_axis": [0, 0, -1],
+                "spin_rate_deg_s": 2.67, "orbit": {"altitude_km": 780}}
+ORBIT = {"altitude_km": 780}
+ENVISAT_LVLH_POSE = {"position_m": [0, 0, 0], "euler_deg": [90, 0, -90]}
+
+
+def _envisat(detail: str = "medium", **where: Any) -> dict[str, Any]:
+    return {"name": "envisat", "mesh": {"model": "envisat", "options": {"detail": detail}},
+            **where}
+
+
+def _hcw(sensor: str, position: list[float], segment: dict[str, Any]) -> dict[str, Any]:
+    return {"datasheet": sensor, "trajectory": {
+        "kind": "hcw", "orbit": ORBIT, "position_m": position, "segments": [segment],
+        "attitude": {"mode": "look_at", "point_m": [0, 0, 0], "up": [0, 0, 1]}}}
+
+
+def _scene_static(duration: float) -> dict[str, Any]:
+    from ..scenario.demo import demo_scenario
+
+    return demo_scenario(duration_s=duration).model_dump(mode="json")
+
+
+def _scene_static_risley(duration: float) -> dict[str, Any]:
+    from ..scenario.demo import demo_scenario
+
+    return demo_scenario(duration_s=duration, sensor="livox-mid70").model_dump(mode="json")
+
+
+def _scene_tumbling(sensor: str) -> Callable[[float], dict[str, Any]]:
+    def build(duration: float) -> dict[str, Any]:
+        return {"seed": 2013,
+                "sensor": _hcw(sensor, [0, 30, 0], {"type": "hold", "duration_s": 600}),
+                "targets": [_envisat(trajectory=ENVISAT_2013)],
+                "scan": {"duration_s": duration}}
+    return build
+
+
+def _scene_flyaround(duration: float) -> dict[str, Any]:
+    # start a quarter of the way round, where the chaser moves fastest across the target
+    return {"seed": 50,
+            "sensor": _hcw("livox-mid70", [0, 50, 0], {"type": "fly_around", "orbits": 1,
+                                                       "out_of_plane": True}),
+            "targets": [_envisat(pose=ENVISAT_LVLH_POSE)],
+            "scan": {"duration_s": duration, "start_s": 1500.0}}
+
+
+def _scene_vlp16(duration: float) -> dict[str, Any]:
+    return {"seed": 16,
+            "sensor": _hcw("velodyne-vlp16", [0, 15, 0], {"type": "fly_around", "orbits": 1,
+                                                          "out_of_plane": True}),
+            "targets": [_envisat(pose=ENVISAT_LVLH_POSE)],
+            "scan": {"duration_s": duration / 3.0}}  # 300k points/s: ~the MID-70's rays
+
+
+def _scene_flash(duration: float) -> dict[str, Any]:
+    data = _scene_static(1.0)
+    data["sensor"]["datasheet"] = "ball-vns-flash"
+    data["scan"] = {"duration_s": 1.0 / 30.0}  # one flash: 256 × 256 rays
+    return data
+
+
+def _scene_divergence(duration: float) -> dict[str, Any]:
+    data = _scene_static(duration)
+    data["sensor"]["beam"] = {"sub_rays": 7}
+    data["sensor"]["detection"] = {}
+    data["sensor"]["returns"] = {"mode": "dual"}
+    return data
+
+
+def _scene_two_targets(duration: float) -> dict[str, Any]:
+    # examples/scenarios/two_targets.yaml: Envisat 40 m ahead, a tumbling box crossing at 25 m
+    return {"seed": 2, "sensor": {"datasheet": "livox-mid70-rose",
+                                  "pose": {"position_m": [0, 0, 0]}},
+            "targets": [
+                _envisat(pose={"position_m": [40, -2, 0], "euler_deg": [-90, 0, 90]}),
+                {"name": "debris", "mesh": {"model": "box", "options": {
+                    "extents_m": [1.2, 0.8, 0.4]}},
+                 "trajectory": {"kind": "constant_velocity", "position_m": [25, -4, 0],
+                                "velocity_m_s": [0, 2, 0], "euler_deg": [0, 0, 0],
+                                "angular_velocity_deg_s": [10, 20, 20]}}],
+            "scan": {"duration_s": duration}}
+
+
+def _scene_mesh_1m(duration: float) -> dict[str, Any]:
+    data = _scene_static(duration)
+    data["targets"][0]["mesh"] = {"path": str(_million_triangle_mesh())}
+    return data
+
+
+_MESH_CACHE: dict[str, Path] = {}
+
+
+def _million_triangle_mesh() -> Path:
+    """The fine Envisat (~96k triangles) subdivided twice (~1.5M), as a binary PLY in a
+    temporary directory kept for the process."""
+    path = _MESH_CACHE.get("mesh")
+    if path is None or not path.is_file():
+        import trimesh
+
+        from ..plugins.manager import get_registry
+
+        model = get_registry().get("target_model", "envisat").from_config({"detail": "fine"})
+        mesh = model.mesh()
+        vertices, faces = mesh.vertices, mesh.faces
+        for _ in range(2):
+            vertices, faces = trimesh.remesh.subdivide(vertices, faces)
+        folder = Path(tempfile.mkdtemp(prefix="lidarsim-bench-"))
+        path = folder / "envisat_1m.ply"
+        trimesh.Trimesh(vertices, faces, process=False).export(path)
+        _MESH_CACHE["mesh"] = path
+    return path
+
+
+#: The suite: name → (description, scenario builder taking the scan duration of the rose
+#: scenes in seconds).
+SUITE: dict[str, tuple[str, Callable[[float], dict[str, Any]]]] = {
+    "static-demo": ("Envisat 30 m, MID-70 rose, static (the demo)", _scene_static),
+    "static-risley": ("the demo with the Risley MID-70", _scene_static_risley),
+    "tumbling-risley": ("Envisat tumbling at 2.67 °/s (2013), Risley MID-70, HCW hold at 30 m",
+                        _scene_tumbling("livox-mid70")),
+    "tumbling-rose": ("the tumbling Envisat with the MID-70 rose",
+                      _scene_tumbling("livox-mid70-rose")),
+    "flyaround-50m": ("50 m out-of-plane fly-around, sensor moving and turning (look-at)",
+                      _scene_flyaround),
+    "vlp16-circling-15m": ("VLP-16 circling Envisat at 15 m (HCW fly-around)", _scene_vlp16),
+    "flash-256": ("256 × 256 flash (Ball VNS class), one frame", _scene_flash),
+    "divergence-7": ("demo with 7 sub-rays per pulse, detection and dual returns",
+                     _scene_divergence),
+    "two-targets": ("Envisat and a tumbling box moving across (examples/two_targets)",
+                    _scene_two_targets),
+    "mesh-1m": ("demo with a ~1.5M-triangle Envisat", _scene_mesh_1m),
+}
+
+
+def cast_rays(sim: Any, frame: int = 0) -> list[tuple[Any, np.ndarray, np.ndarray]]:
+    """Every ray the simulation casts in ``frame``, without culling: per target its mesh and
+    the (sub-)rays' origins and directions in its body frame, as
+    :func:`lidarsim_core.pipeline.cast.cast_piece` forms them."""
+    k0, k1 = sim.frame_rays(frame)
+    batch = sim.pattern.rays_for_indices(np.arange(k0, k1, dtype=np.int64))
+    t_frame = sim.scenario.scan.frame_interval(frame)[0]
+    _, _, bodies, _ = pulse_frames(sim.context, batch, sim.context.noise_contexts(frame), t_frame)
+    out = []
+    for target, (origin, vecs) in zip(sim.targets, bodies):
+        if sim.sub_rays is None:
+            directions = vecs[0]
+        else:
+            directions = sim.sub_rays.directions(*vecs)
+            if len(origin) > 1:
+                origin = np.repeat(origin, sim.rays_per_pulse, axis=0)
+        out.append((target.mesh, np.ascontiguousarray(np.broadcast_to(origin, directions.shape)),
+                    np.ascontiguousarray(directions)))
+    return out
+
+
+def suite_stages(sim: Any, frame: int = 0, rounds: int = 3) -> dict[str, Any]:
+    """Nanoseconds per emitted ray of each stage of ``frame`` on one thread, the whole frame
+    as one piece (best of ``rounds``).
+
+    ``pattern``: the scan pattern's rays; ``poses``: the sensor's and targets' poses at every
+    ray (:func:`lidarsim_core.pipeline.posing.with_piece_poses`); ``cull``: which pulses may reach a
+    target; ``cast``: ``backend.cast`` of the remaining (sub-)rays on every target;
+    ``measurement``: the rest of the per-pulse work (angular error, frame changes, returns,
+    detection, range error, the record's columns); ``record``: assembling the point cloud
+    and its metadata.
+    """
+    from ..pipeline.posing import with_piece_poses
+    from ..records.pointcloud import PointCloud
+
+    k0, k1 = sim.frame_rays(frame)
+    n = k1 - k0
+    t_frame = sim.scenario.scan.frame_interval(frame)[0]
+    contexts = sim.context.noise_contexts(frame)
+    index = np.arange(k0, k1, dtype=np.int64)
+    batch = sim.pattern.rays_for_indices(index)
+    posed = with_piece_poses(sim.context, batch, t_frame)
+    kept = posed if sim.culler is None else posed.take(sim.culler.keep(sim.context, posed, t_frame))
+    _, _, bodies, _ = pulse_frames(sim.context, kept, contexts, t_frame)
+    rays = []
+    for target, (origin, vecs) in zip(sim.targets, bodies):
+        d = vecs[0] if sim.sub_rays is None else sim.sub_rays.directions(*vecs)
+        if sim.sub_rays is not None and len(origin) > 1:
+            origin = np.repeat(origin, sim.rays_per_pulse, axis=0)
+        rays.append((target.mesh, np.broadcast_to(origin, d.shape), d))
+    columns = process_piece(sim.context, sim.stages, kept, contexts, t_frame, frame)
+
+    probes = {
+        "pattern": lambda: sim.pattern.rays_for_indices(index),
+        "poses": lambda: with_piece_poses(sim.context, batch, t_frame),
+        "cull": lambda: None if sim.culler is None else sim.culler.keep(sim.context, posed, t_frame),
+        "cast": lambda: [sim.backend.cast(mesh, o, d) for mesh, o, d in rays],
+        "process": lambda: process_piece(sim.context, sim.stages, kept, contexts, t_frame, frame),
+        "record": lambda: PointCloud.concatenate([columns], sim.frame_info(frame)),
+    }
+    best = with_threads(1, lambda: interleaved_best(probes, rounds)[0])
+    ns = {key: 1e9 * seconds / n for key, seconds in best.items()}
+    process = ns.pop("process")
+    ns["measurement"] = max(0.0, process - ns["cast"])
+    return {"ns_per_ray": {key: ns[key] for key in
+                           ("pattern", "poses", "cull", "cast", "measurement", "record")},
+            "pulses_after_cull": len(kept) / n if n else None}
+
+
+def bench_suite_scene(name: str, *, duration_s: float = 1.0, rounds: int = 5,
+                      stages: bool = True) -> dict[str, Any]:
+    """Benchmark one scene of :data:`SUITE` (see the module docstring)."""
+    from ..pipeline.simulation import Simulation
+    from ..scenario.load import scenario_from_dict
+
+    description, build = SUITE[name]
+    sim = Simulation(scenario_from_dict(build(duration_s), source=f"<bench {name}>"))
+    for target in sim.targets:
+        sim.backend.prepared(target.mesh)
+    k0, k1 = sim.frame_rays(0)
+    emitted = k1 - k0
+    cast = cast_rays(sim)
+    threads = worker_threads()
+    probes: dict[str, Callable[[], Any]] = {
+        "simulate": lambda: sim.run_frame(0),
+        "simulate_1thread": threads_env(1, lambda: sim.run_frame(0)),
+    }
+    for label, count in (("bare_embree_1thread", 1), ("bare_embree", threads)):
+        parts = [bare_embree_probe(mesh, o, d, count) for mesh, o, d in cast]
+        if all(p is not None for p in parts):
+            probes[label] = lambda parts=parts: [p() for p in parts]
+    best, cores = interleaved_best(probes, rounds)
+    rate = {key: emitted / seconds for key, seconds in best.items()}
+    result: dict[str, Any] = {
+        "description": description, "backend": sim.backend.name,
+        "sensor": sim.sensor.name, "triangles": int(sum(t.mesh.n_faces for t in sim.targets)),
+        "rays_emitted": int(emitted), "rays_cast": int(sum(len(o) for _, o, _ in cast)),
+        "rays_per_pulse": sim.rays_per_pulse, "threads": threads,
+        "simulate": rate["simulate"], "simulate_1thread": rate["simulate_1thread"],
+        "bare_embree": rate.get("bare_embree"),
+        "bare_embree_1thread": rate.get("bare_embree_1thread"),
+        "cores_used": {key: round(value, 2) for key, value in cores.items()}}
+    for suffix in ("", "_1thread"):
+        bare = result[f"bare_embree{suffix}"]
+        result[f"simulate_over_bare{suffix}"] = \
+            result[f"simulate{suffix}"] / bare if bare else None
+    if stages:
+        result["stages_1thread"] = suite_stages(sim, rounds=max(2, rounds // 2))
+    return result
+
+
+def suite_targets(scenes: dict[str, dict[str, Any]]) -> dict[str, Any]:
+    """The issue's targets from the suite's figures (None where a scene is missing): every
+    ``simulate_over_bare`` ≥ 0.5 (all threads and one), tumbling ≥ 0.5 × static with the
+    same sensor (rose and Risley), Risley static ≥ 0.5 × rose static."""
+    def ratio(a: str, b: str, key: str = "simulate") -> float | None:
+        if a in scenes and b in scenes and scenes[b].get(key):
+            return scenes[a][key] / scenes[b][key]
+        return None
+
+    ratios = [s.get(f"simulate_over_bare{x}") for s in scenes.values() for x in ("", "_1thread")]
+    known = [r for r in ratios if r is not None]
+    return {"min_simulate_over_bare": min(known) if known else None,
+            "tumbling_over_static_rose": ratio("tumbling-rose", "static-demo"),
+            "tumbling_over_static_risley": ratio("tumbling-risley", "static-risley"),
+            "risley_over_rose_static": ratio("static-risley", "static-demo")}
+
+
+def run_suite(*, quick: bool = False, scenes: list[str] | None = None) -> dict[str, Any]:
+    """Every scene of :data:`SUITE` (or ``scenes``) and the dataset throughput:
+    ``{"scenes": {NAME: {...}}, "targets": {...}, "dataset": {...}}``. ``quick``: 0.1 s scans
+    and two rounds, no 1M-triangle mesh, a 20-frame dataset."""
+    names = scenes or [n for n in SUITE if not (quick and n == "mesh-1m")]
+    duration, rounds = (0.1, 2) if quick else (1.0, 5)
+    results = {name: bench_suite_scene(name, duration_s=duration, rounds=rounds)
+               for name in names}
+    return {"duration_s": duration, "rounds": rounds, "scenes": results,
+            "targets": suite_targets(results),
+            "dataset": bench_dataset(frames=20 if quick else 200, rounds=2 if quick else 3)}
+
+
+def bench_dataset(*, frames: int = 200, rounds: int = 3) -> dict[str, Any]:
+    """Frames per second of a tumbling sequence (:data:`SUITE`'s ``tumbling-risley``, 0.1 s
+    frames at 10 Hz): simulated in memory (``Simulation.run_frame`` of every frame) and
+    written by a serial ``lidarsim dataset`` run (binary PLY files, checksums, sidecars,
+    manifest; a fresh directory each round); best of ``rounds`` interleaved runs."""
+    import shutil
+
+    from ..dataset.generate import generate_dataset
+    from ..pipeline.simulation import Simulation
+    from ..scenario.load import scenario_from_dict
+
+    data = _scene_tumbling("livox-mid70")(0.1)
+    data["scan"] = {"duration_s": 0.1, "frame_rate_hz": 10, "frames": frames}
+    scenario = scenario_from_dict(data, source="<bench dataset>")
+    sim = Simulation(scenario)
+    folder = Path(tempfile.mkdtemp(prefix="lidarsim-bench-dataset-"))
+    runs = iter(range(10 ** 6))
+
+    def in_memory() -> None:
+        for frame in range(frames):
+            sim.run_frame(frame)
+
+    def dataset() -> None:
+        out = folder / f"run{next(runs)}"
+        generate_dataset(scenario, out)
+        shutil.rmtree(out, ignore_errors=True)
+
+    try:
+        best, cores = interleaved_best({"in_memory": in_memory, "dataset": dataset}, rounds)
+    finally:
+        shutil.rmtree(folder, ignore_errors=True)
+    result = {"scene": "tumbling-risley", "frames": frames, "frame_s": 0.1,
+              "in_memory_frames_per_s": frames / best["in_memory"],
+              "dataset_frames_per_s": frames / best["dataset"],
+              "cores_used": {key: round(value, 2) for key, value in cores.items()}}
+    result["dataset_over_in_memory"] = \
+        result["dataset_frames_per_s"] / result["in_memory_frames_per_s"]
+    return result

@@ -1,0 +1,126 @@
+"""``lidarsim bench``: ray-casting and pipeline throughput on the embedded Envisat scenes."""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+import typer
+
+from .app import app, run_guarded
+
+
+@app.command()
+def bench(as_json: bool = typer.Option(False, "--json", help="Print one JSON object."),
+          quick: bool = typer.Option(False, "--quick",
+                                     help="0.2 s scans, fewer repetitions (smoke test).")) -> None:
+    """Rays/s of every backend, of bare Embree (1 and all threads) and of the whole pipeline."""
+    run_guarded(lambda: _bench(as_json, quick))
+
+
+def _rate(value: float | None) -> str:
+    return "-" if value is None else f"{value / 1e6:.2f}M"
+
+
+def _bench(as_json: bool, quick: bool) -> None:
+    from ..bench.throughput import run_benchmark
+
+    result = run_benchmark(quick=quick)
+    if as_json:
+        typer.echo(json.dumps(result, indent=2))
+        return
+    from rich.console import Console
+    from rich.table import Table
+
+    console = Console(highlight=False, width=max(112, Console().width))
+    machine = result["machine"]
+    console.print(f"[bold]lidarsim bench[/]: {machine['cpus']} CPUs, {machine['threads']} "
+                  f"threads, NumPy {machine['numpy']}, embreex {machine['embreex'] or 'absent'}"
+                  f", kernels {machine.get('kernels', 'numpy')}"
+                  f"{' (quick)' if quick else ''}. Rays per second (M = million), best of "
+                  "several runs.")
+    scenes: dict[str, Any] = result["scenes"]
+    names = sorted({b for s in scenes.values() for b in s["backends"]})
+    table = Table(show_edge=False)
+    columns = ["scene", "faces", "rays", "hit %"] + names + [
+        "bare 1t", f"bare {machine['threads']}t", "simulate", "sim/bare"]
+    for col in columns:
+        table.add_column(col, justify="left" if col == "scene" else "right", no_wrap=True)
+    for name, s in scenes.items():
+        ratio = s["simulate_over_bare"]
+        table.add_row(name, f"{s['triangles']:,}", f"{s['rays']:,}",
+                      f"{100 * (s['hit_fraction'] or 0):.1f}",
+                      *[_rate(s["backends"].get(b)) for b in names],
+                      _rate(s["bare_embree_1thread"]), _rate(s["bare_embree"]),
+                      _rate(s["simulate"]), "-" if ratio is None else f"{ratio:.2f}")
+    console.print(table)
+    for name, s in scenes.items():
+        single = ", ".join(f"{b} {_rate(v)}" for b, v in sorted(s["backends_1thread"].items()))
+        cores = s.get("cores_used", {})
+        busy = ", ".join(f"{k} {cores[k]:.2f}" for k in (*names, "bare_embree", "simulate")
+                         if k in cores)
+        speedup = ", ".join(f"{b} {v:.2f}x" for b, v in
+                            sorted(s.get("backend_speedup_all_threads", {}).items()))
+        console.print(f"{name} on one thread: {single}; simulate "
+                      f"{_rate(s['simulate_1thread'])}. All threads over one: {speedup}. "
+                      f"Cores kept busy: {busy}")
+        stages = s.get("stages_1thread")
+        if stages:
+            parts = ", ".join(f"{k} {v:.0f}" for k, v in stages["ns_per_ray"].items())
+            kept = stages["pulses_after_cull"]
+            console.print(f"{name} pipeline stages on one thread, ns per ray: {parts}; "
+                          f"pulses left after culling {100 * kept:.1f} %")
+    div = result.get("divergence")
+    if div:
+        console.print(f"Beam divergence, {div['sub_rays']} sub-rays per pulse: "
+                      f"{1e6 * div['time_per_pulse_s']:.2f} µs per pulse against "
+                      f"{1e6 * div['time_per_k_single_rays_s']:.2f} µs for "
+                      f"{div['sub_rays']} single rays (ratio {div['ratio']:.2f}).")
+    if result.get("suite"):
+        _print_suite(console, result["suite"], machine["threads"])
+    console.print("backend columns: backend.cast on the scan's rays; bare: plain embreex on "
+                  "the same rays in float32; simulate: Simulation.run_frame with the "
+                  f"'{next(iter(scenes.values()))['simulate_backend']}' backend, from ray "
+                  "indices to the point cloud. --json gives every figure.")
+
+
+def _ratio(value: float | None) -> str:
+    return "-" if value is None else f"{value:.2f}"
+
+
+def _print_suite(console: Any, suite: dict[str, Any], threads: int) -> None:
+    """The realistic scenes (:mod:`lidarsim_core.bench.suite`): a table, the stages and the
+    issue's targets."""
+    from rich.table import Table
+
+    table = Table(show_edge=False, title="Realistic scenes: emitted rays per second")
+    columns = ["scene", "rays", "faces", "sim 1t", f"sim {threads}t", "bare 1t",
+               f"bare {threads}t", "sim/bare 1t", f"sim/bare {threads}t"]
+    for col in columns:
+        table.add_column(col, justify="left" if col == "scene" else "right", no_wrap=True)
+    for name, s in suite["scenes"].items():
+        table.add_row(name, f"{s['rays_emitted']:,}", f"{s['triangles']:,}",
+                      _rate(s["simulate_1thread"]), _rate(s["simulate"]),
+                      _rate(s["bare_embree_1thread"]), _rate(s["bare_embree"]),
+                      _ratio(s["simulate_over_bare_1thread"]), _ratio(s["simulate_over_bare"]))
+    console.print(table)
+    for name, s in suite["scenes"].items():
+        stages = s.get("stages_1thread")
+        if stages:
+            parts = ", ".join(f"{k} {v:.0f}" for k, v in stages["ns_per_ray"].items())
+            console.print(f"{name}: {s['description']}. One thread, ns per emitted ray: "
+                          f"{parts}; pulses left after culling "
+                          f"{100 * (stages['pulses_after_cull'] or 0):.1f} %")
+    targets = suite.get("targets", {})
+    console.print("Targets: lowest sim/bare "
+                  f"{_ratio(targets.get('min_simulate_over_bare'))} (goal 0.5); tumbling over "
+                  f"static {_ratio(targets.get('tumbling_over_static_rose'))} (rose), "
+                  f"{_ratio(targets.get('tumbling_over_static_risley'))} (Risley) (goal 0.5); "
+                  f"Risley over rose {_ratio(targets.get('risley_over_rose_static'))} "
+                  "(goal 0.5).")
+    data = suite.get("dataset")
+    if data:
+        console.print(f"Dataset, {data['frames']} frames of the tumbling scene: in memory "
+                      f"{data['in_memory_frames_per_s']:.1f} frames/s, serial lidarsim "
+                      f"dataset {data['dataset_frames_per_s']:.1f} frames/s (ratio "
+                      f"{data['dataset_over_in_memory']:.2f}, goal 0.8).")

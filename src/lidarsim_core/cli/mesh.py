@@ -1,0 +1,107 @@
+"""``lidarsim mesh SOURCE --out FILE``: the target model a simulation scans, as a mesh file.
+
+SOURCE is a built-in (or plugin) target model name, with ``--option key=value`` for its
+options, or a scenario file: then every target is written exactly as the simulation builds
+it (model options, mesh file, scale), one file per target, to ``--out`` as a directory
+(``<target>.obj``, or the ``--format`` suffix) or a template with ``{target}``. Meshes are in
+the target's body frame (the frame of ``targets_in_sensor`` and ``lidarsim poses``), parts as
+named objects (:mod:`lidarsim_core.io.meshfile`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import typer
+
+from .app import app, run_guarded
+
+_SCENARIO_SUFFIXES = (".yaml", ".yml", ".toml", ".json")
+
+
+@app.command()
+def mesh(source: str = typer.Argument(..., help="Target model name (e.g. envisat) or a "
+                                                "scenario file (one mesh per target)."),
+         out: Path = typer.Option(..., "--out", "-o",
+                                  help="Output file (.obj, .ply, .glb, .stl); for a scenario "
+                                       "a directory or a name with '{target}'."),
+         option: list[str] = typer.Option([], "--option",
+                                          help="Model option key=value (repeatable), e.g. "
+                                               "detail=fine."),
+         fmt: str = typer.Option("obj", "--format",
+                                 help="Suffix of the files written into an --out directory."),
+         overwrite: bool = typer.Option(False, help="Replace existing files."),
+         ) -> None:
+    """Write a target model, or every target of a scenario, as a mesh file (body frame)."""
+    run_guarded(lambda: _mesh(source, out, option, fmt, overwrite))
+
+
+def _parse_options(items: list[str]) -> dict[str, Any]:
+    import yaml
+
+    from ..base.errors import ConfigError
+
+    options: dict[str, Any] = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        if not sep or not key.strip():
+            raise ConfigError(f"--option '{item}' is not key=value", field="--option")
+        try:
+            options[key.strip()] = yaml.safe_load(text) if text.strip() else text
+        except yaml.YAMLError:
+            options[key.strip()] = text
+    return options
+
+
+def _mesh(source: str, out: Path, option: list[str], fmt: str, overwrite: bool) -> None:
+    from ..base.errors import ConfigError, OutputError
+    from ..io.meshfile import MESH_EXPORT_SUFFIXES, export_mesh
+    from ..plugins.manager import get_registry
+
+    suffix = "." + fmt.lower().lstrip(".")
+    if suffix not in MESH_EXPORT_SUFFIXES:
+        raise OutputError(f"--format {fmt}: known mesh formats are "
+                          f"{', '.join(s[1:] for s in MESH_EXPORT_SUFFIXES)}", field="--format")
+    path = Path(source)
+    is_scenario = path.suffix.lower() in _SCENARIO_SUFFIXES or path.is_file()
+    if is_scenario:
+        if option:
+            raise ConfigError("--option applies to a model name; a scenario sets its targets' "
+                              "options itself", field="--option")
+        from ..pipeline.simulation import Simulation
+        from ..scenario.load import load_scenario
+
+        targets = [(t.name, t.mesh) for t in Simulation(load_scenario(path)).targets]
+    else:
+        registry = get_registry()
+        model = registry.get("target_model", source, field="SOURCE")
+        targets = [(source, model.from_config(_parse_options(option), field="--option").mesh())]
+    jobs = _outputs(out, [name for name, _ in targets], suffix)
+    for (name, mesh_), target in zip(targets, jobs):
+        if target.exists() and not overwrite:
+            raise OutputError("output file exists (use --overwrite to replace it)",
+                              source=target)
+    for (name, mesh_), target in zip(targets, jobs):
+        export_mesh(mesh_, target, overwrite=overwrite)
+        typer.echo(f"{name}: {mesh_.n_faces:,} triangles, {len(mesh_.part_names)} parts "
+                   f"({', '.join(mesh_.part_names)}) → {target}")
+
+
+def _outputs(out: Path, names: list[str], suffix: str) -> list[Path]:
+    from ..base.errors import OutputError
+
+    text = str(out)
+    for name in names:
+        if not name or "/" in name or "\\" in name or name in (".", ".."):
+            raise OutputError(f"target name {name!r} cannot be a file name", source=out)
+    if "{target}" in text:
+        if "{target}" in str(out.parent):
+            raise OutputError("'{target}' may appear in the file name only", source=out)
+        return [Path(text.replace("{target}", name)) for name in names]
+    if out.is_dir():
+        return [out / f"{name}{suffix}" for name in names]
+    if len(names) > 1:
+        raise OutputError(f"the scenario has {len(names)} targets: give a directory or put "
+                          "'{target}' in --out (e.g. meshes/{target}.obj)", source=out)
+    return [out]

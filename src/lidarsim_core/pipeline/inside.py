@@ -1,0 +1,62 @@
+"""A frame whose sensor sits inside a closed target mesh is refused: every point would lie on
+the inside of the hull, data that looks plausible and is wrong.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from .context import RunContext
+
+
+# ---- impossible geometry -----------------------------------------------------------------
+def _probe_directions() -> Any:
+    import numpy as np
+
+    # the 6 axes and the 8 cube diagonals, slightly skewed so that no probe runs exactly
+    # along an edge or face of an axis-aligned box
+    axes = np.vstack([np.eye(3), -np.eye(3)])
+    diagonals = np.array([[x, y, z] for x in (-1, 1) for y in (-1, 1) for z in (-1, 1)], float)
+    dirs = np.vstack([axes, diagonals]) + np.array([0.0123, -0.0071, 0.0049])
+    return dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
+
+
+def check_sensor_outside(ctx: RunContext, frame: int) -> None:
+    """Refuse a frame whose sensor is inside a closed target at the frame's start or end.
+
+    The sensor counts as inside when probe rays in 14 directions all hit the target and all
+    hit the back (inner) side of a face first, which is only possible from inside a closed,
+    outward-oriented surface. Open meshes (a plate) and meshes with some inward faces never
+    trigger it. A sensor outside the target's bounding box needs no probe.
+
+    Raises
+    ------
+    ConfigError
+        Naming the scenario file and the target's ``pose`` (or ``trajectory``) field.
+    """
+    import numpy as np
+
+    from ..base.errors import ConfigError
+
+    scenario = ctx.scenario
+    t0, t1 = scenario.scan.frame_interval(frame)
+    times = np.array([t0] if scenario.scan.motion == "frozen" else [t0, t1], dtype=np.float64)
+    sensor_at = ctx.sensor_trajectory.poses_at(times).position
+    dirs = _probe_directions()
+    for i, target in enumerate(ctx.targets):
+        poses = target.trajectory.poses_at(times)
+        origins = poses.apply_inverse(sensor_at)
+        lo, hi = target.mesh.bounds
+        for t, origin in zip(times, origins):
+            if (origin < lo).any() or (origin > hi).any():
+                continue  # outside the bounding box: outside any closed surface, no probe
+            hits = ctx.backend.cast(target.mesh, np.repeat(origin[None, :], len(dirs), axis=0),
+                                    dirs)
+            if hits.hit.all() and (np.einsum("ij,ij->i", hits.normal, dirs) > 0).all():
+                cfg = scenario.targets[i]
+                field = f"targets.{i}.trajectory" if cfg.trajectory is not None else \
+                    f"targets.{i}.pose"
+                raise ConfigError(
+                    f"the sensor is inside the closed target '{target.name}' at t = {t:g} s "
+                    "(every probe ray meets the inner side of its surface); move the sensor "
+                    "or the target", source=scenario.source, field=field)

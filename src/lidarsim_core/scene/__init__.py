@@ -1,0 +1,2 @@
+"""What is scanned: triangle meshes with part labels, surface materials and the base class of
+target models."""
