@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from lidarsim_core.base.errors import OutputError
-from lidarsim_core.io.base import write_points_file
+from lidarsim_core.io.write import write_points_file
 from lidarsim_core.io.points import CloudPoints, PointSpool
 from lidarsim_core.io.sidecar import read_sidecar, sidecar_path
 from lidarsim_core.plugins.resolve import exporter_for

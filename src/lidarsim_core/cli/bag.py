@@ -28,11 +28,12 @@ def simulate_to_bag(scenario: "Scenario", frames: Sequence[int], out: Path, *,
     from ..dataset.progress import FrameProgress
     from ..io.rosbag import _rosbags, check_bag_output, write_bag
     from ..pipeline.simulation import Simulation
+    from .progress import FrameBar
 
     _rosbags()  # missing extra 'ros': say so before simulating
     check_bag_output(out, overwrite=overwrite)
     sim = Simulation(scenario)
-    with FrameProgress(len(frames)) as progress:
+    with FrameProgress(len(frames), display=FrameBar()) as progress:
         write_bag((sim.run_frame(f) for f in frames), out,
                   target_names=[t.name for t in sim.targets], overwrite=overwrite, livox=livox,
                   on_frame=lambda _f, cloud: progress.frame_done(len(cloud)))

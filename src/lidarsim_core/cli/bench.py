@@ -7,7 +7,8 @@ from typing import Any
 
 import typer
 
-from .app import app, run_guarded
+from .app import app
+from .errors import run_guarded
 
 
 @app.command()

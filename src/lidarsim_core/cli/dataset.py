@@ -7,7 +7,9 @@ from typing import Optional
 
 import typer
 
-from .app import _console, app, run_guarded
+from .app import app
+from .errors import run_guarded
+from .output import console
 
 
 @app.command()
@@ -42,6 +44,7 @@ def _dataset(source: Path, out: Path, frames: int | None, fmt: str | None,
     from ..base.errors import ConfigError
     from ..base.limits import check_frames
     from ..dataset import generate_dataset
+    from .progress import FrameBar
 
     if workers is not None and scheduler is not None:
         raise ConfigError("give --workers or --scheduler, not both", field="workers")
@@ -49,13 +52,13 @@ def _dataset(source: Path, out: Path, frames: int | None, fmt: str | None,
         check_frames(frames, source=None, field="--frames")
     result = generate_dataset(source, out, frames=frames, format=fmt, workers=workers,
                               scheduler=scheduler, quiet=quiet, verify=verify,
-                              livox=livox)
+                              livox=livox, display=FrameBar())
     if quiet:
         return
     rate = result.frames_written / result.elapsed_s if result.elapsed_s > 0 else 0.0
     from rich.markup import escape
 
-    _console().print(
+    console().print(
         f"dataset {escape(str(result.root))}: {result.frames_total} frames ({result.frames_written} written, "
         f"{result.frames_skipped} already done), {result.points_written:,} points in "
         f"{result.elapsed_s:.1f} s ({rate:.2f} frames/s) → {result.manifest.name}")

@@ -7,7 +7,9 @@ from typing import Any, List, Optional
 
 import typer
 
-from .app import _console, app, run_guarded
+from .app import app
+from .errors import run_guarded
+from .output import console
 
 
 def parse_options(items: list[str]) -> dict[str, Any]:
@@ -69,6 +71,7 @@ def _evaluate(dataset: Path, estimator: str, out: Path, option: list[str], split
               range_bins: str, within: str, quiet: bool) -> None:
     from ..base.errors import ConfigError
     from ..evaluate import evaluate_dataset, parse_symmetry
+    from .progress import EvaluateBar
 
     symmetries = []
     for spec in symmetry:
@@ -91,7 +94,7 @@ def _evaluate(dataset: Path, estimator: str, out: Path, option: list[str], split
     result = evaluate_dataset(dataset, out, estimator, parse_options(option), split=split,
                               target=target, symmetries=symmetries, segment=segment, seed=seed,
                               range_bins_m=bins, within=thresholds,  # type: ignore[arg-type]
-                              quiet=quiet)
+                              quiet=quiet, display=EvaluateBar())
     if quiet:
         return
     overall = result.summary["overall"]
@@ -100,7 +103,7 @@ def _evaluate(dataset: Path, estimator: str, out: Path, option: list[str], split
     median = "no valid estimate" if t is None else \
         f"median errors {t:.4g} m, {r:.4g}°, SPEED score {s:.4g}; " \
         f"{overall['within_rate'] * 100:.3g} % within {thresholds[0]:g} m and {thresholds[1]:g}°"
-    _console().print(
+    console().print(
         f"evaluate {estimator}: {result.frames_total} frames ({result.frames_evaluated} run, "
         f"{result.frames_skipped} already done), {overall['successes']} with an estimate; "
         f"{median} → {result.out / 'report.html'}")

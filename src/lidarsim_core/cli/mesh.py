@@ -15,7 +15,8 @@ from typing import Any
 
 import typer
 
-from .app import app, run_guarded
+from .app import app
+from .errors import run_guarded
 
 _SCENARIO_SUFFIXES = (".yaml", ".yml", ".toml", ".json")
 

@@ -8,10 +8,12 @@ from typing import Any
 
 import typer
 
-from .app import app, run_guarded
+from .app import app
+from .errors import run_guarded
+from .output import console as make_console
 
 
-def _console() -> Any:
+def console() -> Any:
     from .output import console
 
     return console()
@@ -34,7 +36,7 @@ def _pattern(sensor: str, options: list[str]) -> Any:
 
 
 def _check_positive(value: float, flag: str) -> None:
-    from .app import check_number_option
+    from .errors import check_number_option
 
     check_number_option(value, flag, positive=True)
 
@@ -61,7 +63,7 @@ def _export(sensor: str, duration: float, out: Path, start: float, options: list
     from ..base.errors import OutputError
     from ..base.limits import check_pattern_window
     from ..base.outputs import check_file, make_parent
-    from .app import check_number_option
+    from .errors import check_number_option
 
     _check_positive(duration, "--duration")
     check_number_option(start, "--start", minimum=0.0)
@@ -81,7 +83,7 @@ def _export(sensor: str, duration: float, out: Path, start: float, options: list
         stream.write(buffer.getvalue())
     from rich.markup import escape
 
-    _console().print(f"{pat.sensor.name} ({pat.name}): {len(batch):,} rays in "
+    make_console().print(f"{pat.sensor.name} ({pat.name}): {len(batch):,} rays in "
                      f"\\[{start:g}, {start + duration:g}) s → {escape(str(out))}")
 
 
@@ -104,7 +106,7 @@ def _coverage(sensor: str, time_s: float, cell_deg: float, bin_deg: float, start
               options: list[str], as_json: bool) -> None:
     from ..base.limits import check, check_pattern_window
     from ..patterns.fov import coverage_cells, fov_coverage
-    from .app import check_number_option
+    from .errors import check_number_option
     from .output import Column, print_json, print_table
 
     _check_positive(time_s, "--time")
@@ -121,7 +123,7 @@ def _coverage(sensor: str, time_s: float, cell_deg: float, bin_deg: float, start
     if as_json:
         print_json(report.to_dict())
         return
-    console = _console()
+    console = make_console()
     console.print(f"[bold]{report.sensor}[/] ({report.pattern}): {100 * report.coverage:.1f} % "
                   f"of {report.cells_in_fov:,} cells of {cell_deg:g}° hit in {time_s:g} s "
                   f"({report.rays:,} rays; {report.projection} cells)")

@@ -14,7 +14,8 @@ from typing import Optional
 
 import typer
 
-from .app import app, run_guarded
+from .app import app
+from .errors import run_guarded
 
 
 @app.command()

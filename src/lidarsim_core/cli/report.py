@@ -7,7 +7,8 @@ from typing import Any, Optional
 
 import typer
 
-from .app import app, run_guarded
+from .app import app
+from .errors import run_guarded
 
 
 @app.command()
@@ -41,7 +42,7 @@ def _report(run: Path, out: Path | None, scenario: Path | None, frame: int | Non
             color_by: str, coverage_time: float | None, cell_deg: float, three_d: bool,
             overwrite: bool = False) -> None:
     from ..report import write_report
-    from .app import check_number_option
+    from .errors import check_number_option
 
     check_number_option(coverage_time, "--coverage-time", positive=True)
     check_number_option(cell_deg, "--cell-deg", positive=True, maximum=360.0)

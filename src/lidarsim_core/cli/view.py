@@ -15,7 +15,8 @@ from typing import Any, Optional
 
 import typer
 
-from .app import app, run_guarded
+from .app import app
+from .errors import run_guarded
 
 
 @app.command()

@@ -16,8 +16,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from ..io.base import write_points_file
 from ..io.points import DEFAULT_SPOOL_MEMORY, PointSpool
+from ..io.write import write_points_file
 from ..plugins.resolve import exporter_named
 
 #: Built simulations kept per process (one per sequence being worked on).

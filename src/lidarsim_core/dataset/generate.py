@@ -355,7 +355,7 @@ def generate_dataset(source: Scenario | str | Path, out: str | Path, *,
                      workers: int | None = None, scheduler: str | None = None,
                      quiet: bool = True, verify: bool = False,
                      spool_memory: int = DEFAULT_SPOOL_MEMORY,
-                     livox: bool = False) -> DatasetResult:
+                     livox: bool = False, display: Any = None) -> DatasetResult:
     """Generate (or resume, or check) a dataset in ``out``.
 
     Parameters
@@ -378,7 +378,10 @@ def generate_dataset(source: Scenario | str | Path, out: str | Path, *,
     scheduler
         Run on the Dask cluster at this address instead.
     quiet
-        No progress bar.
+        Draw no progress.
+    display
+        Draws the progress unless ``quiet`` (:class:`~lidarsim_core.dataset.progress.FrameProgress`;
+        ``lidarsim dataset`` passes its progress bar).
     verify
         Recompute the checksum of every finished frame before skipping it.
     spool_memory
@@ -458,7 +461,8 @@ def generate_dataset(source: Scenario | str | Path, out: str | Path, *,
                     _refuse(root, lines)
             try:
                 return _run(plan, root, sequences, exporter, manifest, suffix, workers=workers,
-                            scheduler=scheduler, quiet=quiet, verify=verify,
+                            scheduler=scheduler, display=None if quiet else display,
+                            verify=verify,
                             spool_memory=spool_memory)
             finally:
                 for seq in sequences:
@@ -481,7 +485,7 @@ def generate_dataset(source: Scenario | str | Path, out: str | Path, *,
 
 def _run(plan: DatasetPlan, root: Path, sequences: list[_Sequence], exporter: Any,
          manifest: dict[str, Any] | None, suffix: str, *, workers: int | None,
-         scheduler: str | None, quiet: bool, verify: bool, spool_memory: int
+         scheduler: str | None, display: Any, verify: bool, spool_memory: int
          ) -> DatasetResult:
     registry = get_registry()
     bag = isinstance(exporter, BagFormat)
@@ -509,7 +513,7 @@ def _run(plan: DatasetPlan, root: Path, sequences: list[_Sequence], exporter: An
         _write_split_lists(root, sequences, assignment, split_record, suffix)
     if bag:
         return _run_bags(root, sequences, exporter, identity, summaries, split_record,
-                         quiet=quiet, verify=verify)
+                         display=display, verify=verify)
 
     done = {s.plan.name: np.array([frame_is_complete(s.root / frame_relpath(f, suffix),
                                                      verify=verify) is not None
@@ -527,7 +531,7 @@ def _run(plan: DatasetPlan, root: Path, sequences: list[_Sequence], exporter: An
                                exporter.options.model_dump(mode="json"), spool_memory)
 
     try:
-        with FrameProgress(total - skipped, quiet=quiet, already=skipped) as progress:
+        with FrameProgress(total - skipped, display=display, already=skipped) as progress:
             on_result = lambda result: progress.frame_done(result["points"])  # noqa: E731
             if workers is None and scheduler is None:
                 run_serial(jobs(), on_result)
@@ -555,13 +559,13 @@ def _bag_record(seq: _Sequence, verify: bool = False) -> dict[str, Any] | None:
 
 def _run_bags(root: Path, sequences: list[_Sequence], exporter: BagFormat,
               identity: dict[str, Any], summaries: list[dict[str, Any]],
-              splits: dict[str, Any] | None, *, quiet: bool, verify: bool) -> DatasetResult:
+              splits: dict[str, Any] | None, *, display: Any, verify: bool) -> DatasetResult:
     """Write the bag of every sequence whose bag is not complete, then the final manifest."""
     done = [_bag_record(seq, verify) is not None for seq in sequences]
     total = sum(s.frames for s in sequences)
     skipped = sum(s.frames for s, d in zip(sequences, done) if d)
     try:
-        with FrameProgress(total - skipped, quiet=quiet, already=skipped) as progress:
+        with FrameProgress(total - skipped, display=display, already=skipped) as progress:
             for seq, finished in zip(sequences, done):
                 if not finished:
                     write_sequence_bag(seq.sim, seq.frames, seq.root / BAG_NAME,

@@ -1,4 +1,9 @@
-"""The progress bar of a dataset run: frames, frames per second and time left (rich)."""
+"""The progress of a dataset run: frames and points written, frames per second.
+
+Drawing is the caller's: a *display* (the command line's rich bar,
+:class:`lidarsim_core.cli.progress.FrameBar`) has ``start(total, already)``,
+``update(written, frames_per_second)`` and ``stop()``.
+"""
 
 from __future__ import annotations
 
@@ -7,55 +12,34 @@ from typing import Any
 
 
 class FrameProgress:
-    """Counts frames and points; draws a rich progress bar on stderr unless ``quiet``.
+    """Counts frames and points, and shows them on ``display`` (if any).
 
     Parameters
     ----------
     total
         Frames this run has to produce.
-    quiet
-        Draw nothing (for scripts); the counts are still kept.
+    display
+        Draws the progress (None: nothing is drawn; the counts are still kept).
     already
         Frames found finished on disk (shown, not counted in the rate or time left).
     """
 
-    def __init__(self, total: int, *, quiet: bool = False, already: int = 0) -> None:
+    def __init__(self, total: int, *, display: Any = None, already: int = 0) -> None:
         self.total = total
         self.already = already
         self.written = 0
         self.points = 0
         self.started = time.perf_counter()
-        self._progress: Any = None
-        self._task: Any = None
-        if not quiet:
-            from rich.console import Console
-            from rich.progress import (
-                BarColumn,
-                MofNCompleteColumn,
-                Progress,
-                TextColumn,
-                TimeElapsedColumn,
-                TimeRemainingColumn,
-            )
-
-            self._progress = Progress(
-                TextColumn("[bold]frames"), BarColumn(), MofNCompleteColumn(),
-                TextColumn("{task.fields[rate]} frames/s"), TimeElapsedColumn(),
-                TextColumn("ETA"), TimeRemainingColumn(),
-                console=Console(stderr=True), transient=False)
+        self._display = display
 
     def __enter__(self) -> "FrameProgress":
-        if self._progress is not None:
-            self._progress.start()
-            self._task = self._progress.add_task("frames", total=self.total, rate="-")
-            if self.already:
-                self._progress.console.print(f"{self.already} frames already done; "
-                                             f"{self.total} to go")
+        if self._display is not None:
+            self._display.start(self.total, self.already)
         return self
 
     def __exit__(self, *exc: object) -> None:
-        if self._progress is not None:
-            self._progress.stop()
+        if self._display is not None:
+            self._display.stop()
 
     @property
     def elapsed(self) -> float:
@@ -73,6 +57,6 @@ class FrameProgress:
         return self.points / self.elapsed if self.elapsed > 0 else 0.0
 
     def _draw(self) -> None:
-        if self._progress is not None:
+        if self._display is not None:
             rate = self.written / self.elapsed if self.elapsed > 0 else 0.0
-            self._progress.update(self._task, completed=self.written, rate=f"{rate:.2f}")
+            self._display.update(self.written, rate)

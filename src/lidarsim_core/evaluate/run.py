@@ -183,37 +183,24 @@ def _run_frame(seq: SequenceData, entry: Any, target: int, estimator: PoseEstima
 
 
 class _Progress:
-    """A rich progress bar on stderr (frames, failures, time left), or nothing when quiet."""
+    """Frames evaluated and failed, shown on ``display`` (if any): ``start(total, done)``,
+    ``advance(failures)`` and ``stop()`` (the command line's bar,
+    :class:`lidarsim_core.cli.progress.EvaluateBar`)."""
 
-    def __init__(self, total: int, done: int, quiet: bool) -> None:
-        self.bar: Any = None
+    def __init__(self, total: int, done: int, display: Any) -> None:
+        self.display = display
         self.failures = 0
-        if not quiet:
-            from rich.console import Console
-            from rich.progress import (
-                BarColumn,
-                MofNCompleteColumn,
-                Progress,
-                TextColumn,
-                TimeElapsedColumn,
-                TimeRemainingColumn,
-            )
-
-            self.bar = Progress(TextColumn("[bold]evaluate"), BarColumn(), MofNCompleteColumn(),
-                                TextColumn("{task.fields[failures]} failed"),
-                                TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
-                                console=Console(stderr=True))
-            self.bar.start()
-            self.task = self.bar.add_task("frames", total=total, completed=done, failures=0)
+        if display is not None:
+            display.start(total, done)
 
     def advance(self, failed: bool) -> None:
         self.failures += int(failed)
-        if self.bar is not None:
-            self.bar.update(self.task, advance=1, failures=self.failures)
+        if self.display is not None:
+            self.display.advance(self.failures)
 
     def close(self) -> None:
-        if self.bar is not None:
-            self.bar.stop()
+        if self.display is not None:
+            self.display.stop()
 
 
 def _stored(path: Path, seq: str, frame: int) -> dict[str, Any] | None:
@@ -230,7 +217,7 @@ def evaluate_dataset(dataset: str | Path, out: str | Path, estimator: str,
                      segment: bool = False, seed: int = 0,
                      range_bins_m: Iterable[float] = DEFAULT_RANGE_BINS_M,
                      within: tuple[float, float] = DEFAULT_WITHIN,
-                     quiet: bool = True, registry: Any = None,
+                     quiet: bool = True, registry: Any = None, display: Any = None,
                      timer: Callable[[], float] = time.perf_counter) -> EvaluationResult:
     """Score estimator ``estimator`` on every frame of the dataset at ``dataset``.
 
@@ -260,9 +247,11 @@ def evaluate_dataset(dataset: str | Path, out: str | Path, estimator: str,
         ``(metres, degrees)``: the summary's ``within_rate`` is the fraction of frames whose
         estimate is within both (an estimate is not necessarily a right one).
     quiet
-        No progress bar.
+        Draw no progress.
     registry
         Plugin registry (default: the process-wide one).
+    display
+        Draws the progress unless ``quiet`` (``lidarsim evaluate`` passes its progress bar).
     timer
         Clock used to time each call (seconds).
 
@@ -309,7 +298,7 @@ def evaluate_dataset(dataset: str | Path, out: str | Path, estimator: str,
 
     records: dict[str, list[dict[str, Any]]] = {}
     evaluated = 0
-    progress = _Progress(total, done, quiet)
+    progress = _Progress(total, done, None if quiet else display)
     try:
         for seq, index in zip(sequences, indices):
             folder = dirs[seq.name]

@@ -81,3 +81,17 @@ class Poses:
         quats = self.rotation.as_quat().reshape(-1, 4)
         return [{"translation_m": p.tolist(), "quaternion_xyzw": q.tolist()}
                 for p, q in zip(self.position, quats)]
+
+
+def relative_rows(poses: Poses, reference: Poses) -> Poses:
+    """Row ``i`` of ``poses`` in the body frame of row ``i`` of ``reference``, with the bits of
+    ``poses[i].relative_to(reference[i])``.
+
+    :meth:`Poses.relative_to` of one row turns the offset with SciPy's one-rotation path (its
+    matrix, then a matrix product), which rounds differently from SciPy's many-rotation path;
+    the stacked matrix product below is the one-rotation arithmetic on every row.
+    """
+    rotation = reference.rotation.inv() * poses.rotation
+    turn = np.swapaxes(reference.rotation.as_matrix().reshape(-1, 3, 3), 1, 2)
+    offset = (poses.position - reference.position)[:, :, None]
+    return Poses(np.matmul(turn, offset)[:, :, 0], rotation)

@@ -18,23 +18,9 @@ from typing import Any, Sequence
 import numpy as np
 
 from .._version import __version__
-from ..geometry.poses import Poses
+from ..geometry.poses import relative_rows
 from ..records.pointcloud import FrameInfo
 from .context import RunContext
-
-
-def relative_rows(poses: Poses, reference: Poses) -> Poses:
-    """Row ``i`` of ``poses`` in the body frame of row ``i`` of ``reference``, with the bits of
-    ``poses[i].relative_to(reference[i])``.
-
-    :meth:`Poses.relative_to` of one row turns the offset with SciPy's one-rotation path (its
-    matrix, then a matrix product), which rounds differently from SciPy's many-rotation path;
-    the stacked matrix product below is the one-rotation arithmetic on every row.
-    """
-    rotation = reference.rotation.inv() * poses.rotation
-    turn = np.swapaxes(reference.rotation.as_matrix().reshape(-1, 3, 3), 1, 2)
-    offset = (poses.position - reference.position)[:, :, None]
-    return Poses(np.matmul(turn, offset)[:, :, 0], rotation)
 
 
 def frame_infos(ctx: RunContext, frames: Sequence[int], measurement: dict[str, Any]

@@ -12,10 +12,10 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..base.outputs import API_HINT, check_file, make_parent
-from ..io.base import write_points_file
 from ..io.points import CloudPoints
 from ..io.rangeimage import RangeImage, range_image
 from ..io.sidecar import sidecar_path
+from ..io.write import write_points_file
 from ..patterns.base import ScanPattern
 from ..records.pointcloud import PointCloud
 from .resolve import exporter_for, pattern_for_cloud

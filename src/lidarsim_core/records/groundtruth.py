@@ -100,7 +100,7 @@ def frame_records(infos: Sequence["FrameInfo"], clouds: Sequence[str | None]
         return [frame_record(i, c) for i, c in zip(infos, clouds)]
     if not infos:
         return []
-    from ..pipeline.frameinfo import relative_rows
+    from ..geometry.poses import relative_rows
 
     def stacked(records: list[dict[str, list[float]]]) -> Poses:
         return Poses(np.array([r["translation_m"] for r in records], dtype=np.float64),

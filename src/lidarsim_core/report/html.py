@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, Any
 from ..base.atomic import write_text_atomic
 
 if TYPE_CHECKING:
-    from .builder import Report
+    from .result import Report
 
 _CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;max-width:1200px;
