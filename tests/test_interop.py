@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 
 import lidarsim_core as ls
-from lidarsim_core.io.base import write_cloud
+from lidarsim_core.plugins.shortcuts import write_cloud
 from lidarsim_core.records.pointcloud import POINT_FIELDS, PointCloud
 
 FORMATS = ["ply", "pcd", "las", "laz", "csv", "npz"]

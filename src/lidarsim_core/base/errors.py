@@ -71,3 +71,7 @@ class PluginError(LidarsimError):
 
 class BackendError(LidarsimError):
     """A ray backend failed or is not usable in this environment."""
+
+
+class MissingExtraError(UserInputError):
+    """An optional package of an extra is not installed (or does not import)."""

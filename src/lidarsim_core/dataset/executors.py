@@ -15,6 +15,7 @@ from contextlib import ExitStack, contextmanager
 from typing import Any, Callable, Iterable, Iterator
 
 from ..base.errors import ConfigError
+from ..base.optional import require
 from .frames import FrameJob, run_frame_job, simulate_frame_job, write_frame_job
 
 OnResult = Callable[[dict[str, Any]], None]
@@ -152,12 +153,8 @@ class _FrameWriter:
 
 
 def _dask() -> Any:
-    try:
-        from dask import distributed
-    except ImportError as exc:
-        raise ConfigError(f"--workers/--scheduler need Dask ({exc}); pip install "
-                          "'lidarsim-core[dask]'", field="workers") from None
-    return distributed
+    return require("dask.distributed", extra="dask", what="--workers/--scheduler",
+                   error=ConfigError, field="workers")
 
 
 @contextmanager

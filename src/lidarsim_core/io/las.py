@@ -48,6 +48,7 @@ from pydantic import Field
 from .._version import __version__
 from ..base.components import ComponentOptions
 from ..base.errors import ConfigError, OutputError
+from ..base.optional import require
 from ..hookspecs import hookimpl
 from .base import Exporter
 
@@ -81,12 +82,7 @@ class LasOptions(ComponentOptions):
 
 
 def _laspy() -> Any:
-    try:
-        import laspy
-    except ImportError as exc:
-        raise OutputError(f"writing LAS/LAZ needs laspy ({exc}); pip install "
-                          "'lidarsim-core[las]'") from None
-    return laspy
+    return require("laspy", extra="las", what="writing LAS/LAZ", error=OutputError)
 
 
 def classes_fit(part_names: list[str]) -> bool:
@@ -278,12 +274,10 @@ def read_las(path: str | Path) -> "PointCloud":
     ConfigError
         If the file lacks lidarsim's metadata VLR.
     """
-    from ..records.pointcloud import FrameInfo, PointCloud
+    from .columns import cloud_from_columns
 
-    columns, metadata = read_las_columns(path)
-    if metadata is None:
-        raise ConfigError("LAS file lacks lidarsim's metadata VLR", source=path)
-    return PointCloud(columns, FrameInfo.from_dict(metadata))
+    return cloud_from_columns(*read_las_columns(path), source=path,
+                              no_metadata="LAS file lacks lidarsim's metadata VLR")
 
 
 @hookimpl

@@ -6,11 +6,14 @@ Read back with ``numpy.load(path)``: every point-record column under its name, `
 
 from __future__ import annotations
 
+import json
 import zipfile
+from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
 
+from ..base.errors import ConfigError
 from ..hookspecs import hookimpl
 from .base import Exporter
 
@@ -44,16 +47,29 @@ class NpzExporter(Exporter):
                     np.lib.format.write_array(member, array, allow_pickle=False)
 
 
-def read_npz(path: Any) -> "PointCloud":
+def read_npz_columns(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str, Any] | None]:
+    """The columns and frame metadata of an NPZ cloud (no pickles are read).
+
+    Raises
+    ------
+    ConfigError
+        If the file is not a readable NPZ archive.
+    """
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            meta = json.loads(str(data["frame_json"])) if "frame_json" in data.files else None
+            columns = {name: data[name] for name in data.files
+                       if name not in ("frame_json", "part_names", "target_names")}
+    except (OSError, ValueError) as exc:
+        raise ConfigError(f"cannot read NPZ: {exc}", source=path) from None
+    return columns, meta
+
+
+def read_npz(path: str | Path) -> "PointCloud":
     """Load a cloud written by :class:`NpzExporter` (no pickles are read)."""
-    import json
+    from .columns import cloud_from_columns
 
-    from ..records.pointcloud import POINT_FIELDS, FrameInfo, PointCloud
-
-    with np.load(path, allow_pickle=False) as data:
-        columns = {k: data[k] for k in POINT_FIELDS}
-        frame = FrameInfo.from_dict(json.loads(str(data["frame_json"])))
-    return PointCloud(columns, frame)
+    return cloud_from_columns(*read_npz_columns(path), source=path)
 
 
 @hookimpl

@@ -178,12 +178,10 @@ def read_pcd(path: str | Path) -> "PointCloud":
     ConfigError
         If the file is not a binary PCD with lidarsim frame metadata.
     """
-    from ..records.pointcloud import FrameInfo, PointCloud
+    from .columns import cloud_from_columns
 
-    columns, metadata = read_pcd_columns(path)
-    if metadata is None:
-        raise ConfigError("PCD file lacks the lidarsim-frame comment", source=path)
-    return PointCloud(columns, FrameInfo.from_dict(metadata))
+    return cloud_from_columns(*read_pcd_columns(path), source=path,
+                              no_metadata="PCD file lacks the lidarsim-frame comment")
 
 
 @hookimpl

@@ -98,13 +98,13 @@ class RangeImage:
                                 row_channel=self.row_channel, layout=np.array(self.layout),
                                 part_names=np.array(self.part_names, dtype=str),
                                 range_scale_m=np.array(scale))
-        try:
-            from PIL import Image, PngImagePlugin
-        except ImportError as exc:
-            from ..base.errors import OutputError
+        from ..base.errors import OutputError
+        from ..base.optional import require
 
-            raise OutputError(f"writing the PNG needs Pillow ({exc}); pip install "
-                              "'lidarsim-core[viz]'", source=png) from None
+        Image = require("PIL.Image", extra="viz", what="writing the PNG", error=OutputError,
+                        source=png)
+        PngImagePlugin = require("PIL.PngImagePlugin", extra="viz", what="writing the PNG",
+                                 error=OutputError, source=png)
         units = np.where(np.isfinite(self.range), np.round(np.nan_to_num(self.range) / scale), 0)
         image = Image.fromarray(np.clip(units, 0, 65535).astype(np.uint16))
         info = PngImagePlugin.PngInfo()

@@ -11,14 +11,14 @@ what a format stores with less precision comes back at that precision (float32 x
 from __future__ import annotations
 
 import csv
-import json
 from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
 
 from ..base.errors import ConfigError
-from ..records.pointcloud import POINT_FIELDS, FrameInfo, PointCloud
+from ..records.pointcloud import POINT_FIELDS, PointCloud
+from .columns import cloud_from_columns
 
 #: Suffixes :func:`read` knows (those of the built-in exporters).
 READ_SUFFIXES = (".ply", ".pcd", ".las", ".laz", ".npz", ".csv")
@@ -43,14 +43,9 @@ def _las(path: Path) -> tuple[dict[str, np.ndarray], dict[str, Any] | None]:
 
 
 def _npz(path: Path) -> tuple[dict[str, np.ndarray], dict[str, Any] | None]:
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            meta = json.loads(str(data["frame_json"])) if "frame_json" in data.files else None
-            columns = {name: data[name] for name in data.files
-                       if name not in ("frame_json", "part_names", "target_names")}
-    except (OSError, ValueError) as exc:
-        raise ConfigError(f"cannot read NPZ: {exc}", source=path) from None
-    return columns, meta
+    from .npz import read_npz_columns
+
+    return read_npz_columns(path)
 
 
 def _csv(path: Path) -> tuple[dict[str, np.ndarray], dict[str, Any] | None]:
@@ -126,18 +121,4 @@ def read(path: str | Path) -> PointCloud:
             raise ConfigError("the file holds no lidarsim frame metadata and has no sidecar "
                               f"{sidecar_path(path).name}", source=path)
         metadata = read_sidecar(path)["frame"]
-    try:
-        frame = FrameInfo.from_dict(metadata)
-    except TypeError as exc:
-        raise ConfigError(f"frame metadata is not lidarsim's ({exc})", source=path) from None
-    missing = [name for name in POINT_FIELDS if name not in columns]
-    if missing:
-        raise ConfigError(f"file lacks point-record columns {', '.join(missing)}",
-                          source=path, field=missing[0])
-    out = {}
-    for name, values in columns.items():
-        dtype = np.dtype(POINT_FIELDS.get(name, values.dtype))
-        if dtype.kind in "iu" and values.dtype.kind == "f":
-            values = np.round(values)  # integer columns stored as double (PLY's ray_index)
-        out[name] = np.ascontiguousarray(values, dtype=dtype)
-    return PointCloud(out, frame)
+    return cloud_from_columns(columns, metadata, source=path)

@@ -35,12 +35,14 @@ from __future__ import annotations
 import os
 import secrets
 import shutil
+import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable, Iterable, Sequence
 
 import numpy as np
 
 from ..base.errors import OutputError
+from ..base.optional import require
 
 if TYPE_CHECKING:
     from ..records.pointcloud import FrameInfo, PointCloud
@@ -92,13 +94,9 @@ CustomPoint[] points
 
 
 def _rosbags() -> Any:
-    try:
-        import rosbags.rosbag2  # noqa: F401
-        import rosbags.typesys
-    except ImportError as exc:
-        raise OutputError(f"writing ROS 2 bags needs rosbags ({exc}); pip install "
-                          "'lidarsim-core[ros]'") from None
-    return rosbags
+    for module in ("rosbags.rosbag2", "rosbags.typesys"):
+        require(module, extra="ros", what="writing ROS 2 bags", error=OutputError)
+    return sys.modules["rosbags"]
 
 
 def typestore(livox: bool = False) -> Any:

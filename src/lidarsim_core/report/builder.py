@@ -34,10 +34,11 @@ def require_viz() -> None:
     """Raise :class:`VizMissing` unless matplotlib and pyvista can be imported."""
     from importlib.util import find_spec
 
-    missing = [m for m in ("matplotlib", "pyvista") if find_spec(m) is None]
-    if missing:
-        raise VizMissing(f"report figures need {' and '.join(missing)}: "
-                         "pip install 'lidarsim-core[viz]'")
+    from ..base.optional import require
+
+    for module in ("matplotlib", "pyvista"):
+        if find_spec(module) is None:  # found, not imported: the figures import them later
+            require(module, extra="viz", what="report figures", error=VizMissing)
 
 
 def write_report(run_dir: str | Path, out_dir: str | Path | None = None, *,
