@@ -50,9 +50,9 @@ def prepare(tmp_path, monkeypatch, fresh_registry):
             if "LIDARSIM_PLUGINS" in case.env:
                 monkeypatch.syspath_prepend(str(work))
             if case.spool_memory is not None:
-                from lidarsim_core import cli
+                from lidarsim_core.cli import simulate as cli_simulate
 
-                monkeypatch.setattr(cli, "SPOOL_MEMORY_BYTES", case.spool_memory)
+                monkeypatch.setattr(cli_simulate, "SPOOL_MEMORY_BYTES", case.spool_memory)
         if not case.writable:
             _make_read_only(work / "locked", monkeypatch, inject=in_process)
         return work

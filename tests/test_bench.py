@@ -86,9 +86,7 @@ SUITE = {"duration_s": 0.1, "rounds": 2, "scenes": {"tumbling-risley": {
 @pytest.mark.parametrize("as_json", [True, False])
 @pytest.mark.parametrize("with_suite", [False, True])
 def test_cli_prints_the_benchmark(monkeypatch, as_json, with_suite):
-    from lidarsim_core.cli import _load_command_modules, app
-
-    _load_command_modules()
+    from lidarsim_core.cli import app
     fake = {**FAKE, "suite": SUITE} if with_suite else FAKE
     monkeypatch.setattr(bench, "run_benchmark", lambda quick=False: fake)
     result = CliRunner().invoke(app, ["bench", "--quick"] + (["--json"] if as_json else []))

@@ -28,9 +28,7 @@ def cli(*args: str, cwd: Path) -> subprocess.CompletedProcess:
     """The CLI in this process (faster; stdout is not a terminal either)."""
     from typer.testing import CliRunner
 
-    from lidarsim_core.cli import _load_command_modules, app
-
-    _load_command_modules()
+    from lidarsim_core.cli import app
     old = Path.cwd()
     os.chdir(cwd)
     try:
@@ -102,7 +100,7 @@ def test_help_shows_no_type_after_plain_flags():
 
 
 def test_simulate_progress_counts_every_pulse():
-    from lidarsim_core.cli import _counted_chunks
+    from lidarsim_core.cli.simulate import _counted_chunks
     from lidarsim_core.pipeline import Simulation
     from lidarsim_core.scenario.load import scenario_from_dict
 

@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 
 from lidarsim_core.base.errors import OutputError
-from lidarsim_core.io.write import write_points_file
 from lidarsim_core.io.points import CloudPoints, PointSpool
 from lidarsim_core.io.sidecar import read_sidecar, sidecar_path
+from lidarsim_core.io.write import write_points_file
 from lidarsim_core.plugins.resolve import exporter_for
 from lidarsim_core.plugins.shortcuts import write_cloud
 from lidarsim_core.records.pointcloud import POINT_FIELDS, PointCloud

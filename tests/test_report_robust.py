@@ -87,7 +87,7 @@ def test_plane_ids_group_faces_by_plane_not_by_part():
 
 
 def test_colour_bar_ticks_are_round():
-    from lidarsim_core.report.scene import nice_ticks
+    from lidarsim_core.report.plotting import nice_ticks
 
     assert nice_ticks(25.65, 35.7) == (25, 40, 4, "%.0f")
     lo, hi, labels, fmt = nice_ticks(0.0012, 0.0093)

@@ -112,10 +112,10 @@ def test_streamed_through_a_temporary_file_gives_the_same_bytes(scene, reference
     from typer.testing import CliRunner
 
     from lidarsim_core import cli
+    from lidarsim_core.cli import simulate as cli_simulate
     from lidarsim_core.io.points import PointSpool
 
-    cli._load_command_modules()
-    monkeypatch.setattr(cli, "SPOOL_MEMORY_BYTES", 4096)
+    monkeypatch.setattr(cli_simulate, "SPOOL_MEMORY_BYTES", 4096)
     spilled: list[bool] = []
     close = PointSpool.close
     monkeypatch.setattr(PointSpool, "close",
@@ -190,8 +190,6 @@ def test_sidecar_records_enough_to_regenerate_the_file(scene, tmp_path):
     from typer.testing import CliRunner
 
     from lidarsim_core import cli
-
-    cli._load_command_modules()
     target = tmp_path / "cloud.npz"
     result = CliRunner().invoke(cli.app, ["simulate", str(scene), "--out", str(target),
                                           "--seed", "42"], catch_exceptions=False)

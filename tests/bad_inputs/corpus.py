@@ -255,8 +255,6 @@ def run_in_process(case: Case) -> Outcome:
     from typer.testing import CliRunner
 
     from lidarsim_core import cli
-
-    cli._load_command_modules()
     result = CliRunner().invoke(cli.app, case.run, catch_exceptions=False)
     return Outcome(result.exit_code, result.stdout, result.stderr)
 

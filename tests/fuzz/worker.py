@@ -48,8 +48,6 @@ def main() -> None:
     protocol = os.fdopen(os.dup(sys.stdout.fileno()), "w", buffering=1)
     os.environ.setdefault("LIDARSIM_DISABLE_PLUGIN_AUTOLOAD", "1")
     from lidarsim_core import cli
-
-    cli._load_command_modules()
     import lidarsim_core.pipeline  # noqa: F401  (imported before a case's clock starts)
 
     if os.environ.get("LIDARSIM_FUZZ_DISABLE"):

@@ -16,7 +16,7 @@ from pathlib import Path
 from typing import Any
 
 from .errors import ConfigError, UserInputError
-from .oserrors import _describe
+from .oserrors import describe_os_error
 
 CONFIG_SUFFIXES = (".yaml", ".yml", ".toml", ".json")
 
@@ -46,7 +46,7 @@ def check_input_file(path: str | Path, what: str = "file", *, limit_name: str = 
         elif exc.errno == errno.ENOENT:
             reason = f"{what} not found"
         else:
-            reason = f"cannot read {what}: {_describe(exc)}"
+            reason = f"cannot read {what}: {describe_os_error(exc)}"
         raise error(prefix + reason, **where) from None
     mode = info.st_mode
     kind = None
@@ -86,7 +86,7 @@ def read_bytes_file(path: str | Path, what: str = "file", *, limit_name: str = "
         with open(path, "rb") as stream:
             data = stream.read(bound + 1)
     except OSError as exc:
-        raise error(f"{prefix}cannot read {what}: {_describe(exc)}", **where) from None
+        raise error(f"{prefix}cannot read {what}: {describe_os_error(exc)}", **where) from None
     if len(data) > bound:
         raise error(f"{prefix}{what} grew beyond the limit of {bound:,} bytes while it was "
                     "read", **where)

@@ -10,8 +10,9 @@ if TYPE_CHECKING:
     pass
 
 
-def _describe(error: OSError) -> str:
-    """The reason an OS call failed on a path, in words (errno-specific where it matters)."""
+def describe_os_error(error: OSError) -> str:
+    """The reason an OS call failed on a path, in words (errno-specific where it matters:
+    "no space left on the device", ...)."""
     reasons = {errno.ENOENT: "not found", errno.ELOOP: "is a symbolic link loop",
                errno.ENAMETOOLONG: "file name too long", errno.EACCES: "permission denied",
                errno.EPERM: "operation not permitted", errno.ENOTDIR: "a parent is not a "
@@ -20,14 +21,6 @@ def _describe(error: OSError) -> str:
                "exceeded", errno.EIO: "input/output error", errno.EFBIG: "file too large",
                errno.EEXIST: "already exists", errno.EMFILE: "too many open files"}
     return reasons.get(error.errno or 0) or " ".join((error.strerror or str(error)).split())
-
-
-# ---- the error boundary: output paths, OS errors, numerical warnings ------------------------
-def describe_os_error(exc: OSError) -> str:
-    """The reason of an OS error in words ("no space left on the device", ...)."""
-    from .oserrors import _describe
-
-    return _describe(exc)
 
 
 def os_error_line(exc: OSError) -> str:

@@ -26,11 +26,11 @@ def simulate_to_bag(scenario: "Scenario", frames: Sequence[int], out: Path, *,
         raise OutputError("--range-image writes beside per-frame cloud files, not into a bag",
                           source=out)
     from ..dataset.progress import FrameProgress
-    from ..io.rosbag import _rosbags, check_bag_output, write_bag
+    from ..io.rosbag import check_bag_output, require_rosbags, write_bag
     from ..pipeline.simulation import Simulation
     from .progress import FrameBar
 
-    _rosbags()  # missing extra 'ros': say so before simulating
+    require_rosbags()  # missing extra 'ros': say so before simulating
     check_bag_output(out, overwrite=overwrite)
     sim = Simulation(scenario)
     with FrameProgress(len(frames), display=FrameBar()) as progress:

@@ -129,22 +129,16 @@ def _draw(plotter: Any, clouds: list[tuple[Path, Any]], colours: list[Any],
           meshes: list[Any]) -> None:
     import numpy as np
 
-    from ..report.scene import (
-        MESH_COLOUR,
-        SENSOR_COLOUR,
-        _add_coloured_points,
-        _add_points,
-        _look,
-        _oblique_view,
-    )
+    from ..report.plotting import add_coloured_points, add_points, look, oblique_view
+    from ..report.scene import MESH_COLOUR, SENSOR_COLOUR
 
     for poly in meshes:
         plotter.add_mesh(poly, color=MESH_COLOUR, opacity=0.35, show_edges=False)
     points = [c.xyz for _, c in clouds]
     size = 4.0
     for xyz, colour in zip(points, colours):
-        _add_coloured_points(plotter, xyz, colour, size)
-    _add_points(plotter, np.zeros((1, 3)), 12.0, color=SENSOR_COLOUR)
+        add_coloured_points(plotter, xyz, colour, size)
+    add_points(plotter, np.zeros((1, 3)), 12.0, color=SENSOR_COLOUR)
     everything = np.concatenate([p for p in points if len(p)] or [np.zeros((1, 3))])
     centre = everything.mean(axis=0)
-    _look(plotter, centre, _oblique_view(centre), (0.0, 0.0, 1.0))
+    look(plotter, centre, oblique_view(centre), (0.0, 0.0, 1.0))

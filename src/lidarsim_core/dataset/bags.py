@@ -48,7 +48,7 @@ class BagFormat:
     @classmethod
     def from_options(cls, options: dict[str, Any], *, source: Any = None) -> "BagFormat":
         """Check ``options`` (only ``livox``, a boolean) and that rosbags is installed."""
-        from ..io.rosbag import _rosbags
+        from ..io.rosbag import require_rosbags
 
         unknown = sorted(set(options) - {"livox"})
         if unknown:
@@ -58,7 +58,7 @@ class BagFormat:
         if not isinstance(livox, bool):
             raise ConfigError("option 'livox' of format mcap must be true or false",
                               source=source, field="exporter_options.livox")
-        _rosbags()  # missing extra 'ros': say so before anything is created
+        require_rosbags()  # missing extra 'ros': say so before anything is created
         return cls(livox=livox)
 
     def identity(self) -> dict[str, Any]:
@@ -71,12 +71,12 @@ def check_bag_sequences(scenarios: Iterable["Scenario"]) -> None:
     """Refuse, before anything is created, sequences a bag cannot hold: a target name that is
     not a ROS topic / TF frame name (or is ``scene`` / ``sensor``), or frames longer than
     PointCloud2's uint32 ns per-point time field (4.29 s)."""
-    from ..io.rosbag import _check_target_names
+    from ..io.rosbag import check_target_names
 
     limit_s = np.iinfo(np.uint32).max * 1e-9
     for scenario in scenarios:
         try:
-            _check_target_names([target.name for target in scenario.targets])
+            check_target_names([target.name for target in scenario.targets])
         except UserInputError as exc:
             raise ConfigError(exc.message, source=scenario.source, field=exc.field) from None
         if scenario.scan.duration_s > limit_s:

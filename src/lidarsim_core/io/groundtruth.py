@@ -14,13 +14,13 @@ from ..base.errors import ConfigError, OutputError
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..records.pointcloud import FrameInfo
-from ..records.groundtruth import _QUATS, FORMAT_NAME, ground_truth
+from ..records.groundtruth import FORMAT_NAME, QUATERNION_FIELDS, ground_truth
 
 
 def _csv_columns() -> list[str]:
     cols = ["frame", "t_start_s", "t_end_s", "cloud", "target"]
     for end in ("", "_end"):
-        for q in _QUATS:
+        for q in QUATERNION_FIELDS:
             cols += [f"{q}{end}_{a}" for a in "xyzw"]
             r = "r" + q[1:]
             cols += [f"{r}{end}_{a}_m" for a in "xyz"]
@@ -36,7 +36,7 @@ def _csv_text(data: dict[str, Any]) -> str:
             row: list[Any] = [fr["frame"], repr(fr["t_start_s"]), repr(fr["t_end_s"]),
                               fr["cloud"] or "", tg["name"]]
             for end in ("", "_end"):
-                for q in _QUATS:
+                for q in QUATERNION_FIELDS:
                     source = fr if q.startswith("q_sensor") else tg
                     row += [repr(v) for v in source[f"{q}{end}"]]
                     row += [repr(v) for v in source[f"r{q[1:]}{end}_m"]]

@@ -93,7 +93,7 @@ CustomPoint[] points
 """
 
 
-def _rosbags() -> Any:
+def require_rosbags() -> Any:
     for module in ("rosbags.rosbag2", "rosbags.typesys"):
         require(module, extra="ros", what="writing ROS 2 bags", error=OutputError)
     return sys.modules["rosbags"]
@@ -101,7 +101,7 @@ def _rosbags() -> Any:
 
 def typestore(livox: bool = False) -> Any:
     """The ROS 2 Humble type store, with the Livox driver's messages registered if asked."""
-    _rosbags()
+    require_rosbags()
     from rosbags.typesys import Stores, get_types_from_msg, get_typestore
 
     store = get_typestore(Stores.ROS2_HUMBLE)
@@ -232,7 +232,7 @@ def ground_truth_messages(store: Any, frame: "FrameInfo") -> list[Any]:
     return out
 
 
-def _check_target_names(names: Sequence[str]) -> None:
+def check_target_names(names: Sequence[str]) -> None:
     reserved = {SCENE_FRAME, SENSOR_FRAME}
     for name in names:
         if name in reserved:
@@ -282,7 +282,7 @@ def write_bag(clouds: Iterable["PointCloud"], path: str | Path, *, target_names:
     Path
         ``path``.
     """
-    _rosbags()
+    require_rosbags()
     from rosbags.rosbag2 import StoragePlugin, Writer
 
     from ..base.outputs import make_parent
@@ -291,7 +291,7 @@ def write_bag(clouds: Iterable["PointCloud"], path: str | Path, *, target_names:
     make_parent(path)  # a missing folder is created, as for every output
     parent = path.parent if str(path.parent) else Path(".")
     target_names = list(target_names)
-    _check_target_names(target_names)
+    check_target_names(target_names)
     store = typestore(livox)
     work = parent / f".{path.name}.{secrets.token_hex(6)}.part"
     # the bag directory inside has a fixed name: rosbag2's metadata record in the MCAP file

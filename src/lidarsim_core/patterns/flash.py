@@ -23,7 +23,6 @@ from pydantic import Field
 
 from ..base.components import ComponentOptions
 from ..hookspecs import hookimpl
-from .base import RayBatch
 from .geometry import directions_from_az_el
 from .timing import CycleTimedPattern, FiringCycle
 
@@ -53,7 +52,7 @@ class FlashPattern(CycleTimedPattern):
 
     def __init__(self, options: Any = None, sensor: Any = None) -> None:
         super().__init__(options, sensor)
-        self._pixels = self.pixel_directions()
+        self.slot_directions = self.pixel_directions()
 
     @property
     def frame_rate_hz(self) -> float:
@@ -92,11 +91,6 @@ class FlashPattern(CycleTimedPattern):
             c, s = math.cos(pitch), math.sin(pitch)
             d = np.stack([c * d[:, 0] - s * d[:, 2], d[:, 1], s * d[:, 0] + c * d[:, 2]], axis=1)
         return d
-
-    def rays_for_indices(self, index: np.ndarray) -> RayBatch:
-        index = np.asarray(index, dtype=np.int64)
-        t, slot, channel = self.cycle.rays(index)
-        return RayBatch(index, t, self._pixels[slot], channel)
 
 
 @hookimpl

@@ -23,7 +23,6 @@ from pydantic import Field, model_validator
 from ..base.components import ComponentOptions
 from ..base.errors import ConfigError
 from ..hookspecs import hookimpl
-from .base import RayBatch
 from .geometry import directions_from_az_el
 from .timing import CycleTimedPattern, FiringCycle
 
@@ -77,7 +76,7 @@ class RasterPattern(CycleTimedPattern):
     def __init__(self, options: Any = None, sensor: Any = None) -> None:
         super().__init__(options, sensor)
         az, el = self._grid()
-        self._slots = directions_from_az_el(az, el)
+        self.slot_directions = directions_from_az_el(az, el)
 
     def _axes(self) -> tuple[np.ndarray, np.ndarray]:
         opts, sheet = self.options, self.sensor
@@ -124,11 +123,6 @@ class RasterPattern(CycleTimedPattern):
         """``(rows, columns)`` of the raster."""
         az, el = self._axes()
         return len(el), len(az)
-
-    def rays_for_indices(self, index: np.ndarray) -> RayBatch:
-        index = np.asarray(index, dtype=np.int64)
-        t, slot, channel = self.cycle.rays(index)
-        return RayBatch(index, t, self._slots[slot], channel)
 
 
 @hookimpl

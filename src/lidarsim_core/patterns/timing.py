@@ -19,7 +19,7 @@ import numpy as np
 
 from .. import kernels
 from ..base.errors import ConfigError
-from .base import ScanPattern
+from .base import RayBatch, ScanPattern
 
 #: Times closer than this fraction of a cycle to a cycle start count as that start, so that an
 #: interval boundary written as e.g. ``0.3`` s lands exactly on frame 9 of a 30 Hz sensor.
@@ -122,9 +122,15 @@ class FiringCycle:
 class CycleTimedPattern(ScanPattern):
     """A scan pattern whose timing is a :class:`FiringCycle` (built once, in ``__init__``).
 
-    Subclasses implement :meth:`build_cycle` and :meth:`rays_for_indices`; they use
-    :attr:`cycle` for the time, slot and channel of each index.
+    Subclasses implement :meth:`build_cycle` and either set :attr:`slot_directions` (a fixed
+    direction per firing slot: flash pixels, raster positions) or implement
+    :meth:`rays_for_indices`; they use :attr:`cycle` for the time, slot and channel of each
+    index.
     """
+
+    #: (slots, 3) unit direction of each firing slot when it never changes (None: the
+    #: subclass computes directions in :meth:`rays_for_indices`).
+    slot_directions: np.ndarray | None = None
 
     #: Relative excess of the schedule's mean rate over the datasheet point rate still accepted
     #: (datasheet rates are rounded figures).
@@ -159,3 +165,11 @@ class CycleTimedPattern(ScanPattern):
 
     def time_of_index(self, index: np.ndarray) -> np.ndarray:
         return self.cycle.time(index)
+
+    def rays_for_indices(self, index: np.ndarray) -> RayBatch:
+        if self.slot_directions is None:
+            raise NotImplementedError(f"{type(self).__name__} sets no slot_directions and "
+                                      "does not implement rays_for_indices()")
+        index = np.asarray(index, dtype=np.int64)
+        t, slot, channel = self.cycle.rays(index)
+        return RayBatch(index, t, self.slot_directions[slot], channel)

@@ -60,7 +60,7 @@ CONVENTION = ("x_B = R(q_A_in_B) * x_A + r_A_in_B_m; quaternions scalar-last [x,
               "t_start_s, with _end at t_end_s (s from the scenario epoch)")
 
 
-_QUATS = ("q_target_in_sensor", "q_target_in_scene", "q_sensor_in_scene")
+QUATERNION_FIELDS = ("q_target_in_sensor", "q_target_in_scene", "q_sensor_in_scene")
 
 
 def _pair(record: dict[str, list[float]], what: str, end: bool) -> dict[str, list[float]]:

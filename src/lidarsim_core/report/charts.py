@@ -29,7 +29,7 @@ SEGMENT_RAYS = 4000
 _SEGMENT_COLOURS = ("#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e")
 
 
-def _figure(width_in: float, height_in: float) -> Any:
+def new_figure(width_in: float, height_in: float) -> Any:
     """A matplotlib Figure with an Agg canvas, outside pyplot's global state."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
@@ -102,7 +102,7 @@ def pattern_figure(pattern: ScanPattern, path: str | Path, *, segments: int = 3,
     else:
         pts, keep = plane_points(batch.direction, distance_m)
     which = np.minimum(((batch.t[keep] - t_start_s) / seg).astype(int), segments - 1)
-    fig = _figure(10.0, 5.6) if panoramic else _figure(7.0, 7.4)
+    fig = new_figure(10.0, 5.6) if panoramic else new_figure(7.0, 7.4)
     ax = fig.add_subplot()
     label = "rosette" if getattr(pattern.options, "turn_period_s", None) else "segment"
     size = float(np.clip(6000.0 / max(len(pts), 1), 0.3, 4.0))
@@ -167,7 +167,7 @@ def error_histogram_figure(sample: np.ndarray, fit: NormalFit, datasheet_sigma: 
     ``sample``, ``fit`` and ``datasheet_sigma`` are in the display unit ``unit``;
     ``sample_label`` describes the sample in the legend (default: its size).
     """
-    fig = _figure(7.0, 4.6)
+    fig = new_figure(7.0, 4.6)
     ax = fig.add_subplot()
     spread = max(fit.sigma, datasheet_sigma, 1e-12)
     lo, hi = fit.mean - 4.5 * spread, fit.mean + 4.5 * spread
@@ -281,7 +281,7 @@ def coverage_figure(cmap: CoverageMap, path: str | Path, *, sensor: str, duratio
 
     coverage = cmap.coverage if coverage is None else coverage
     wide = cmap.projection == "equirectangular"
-    fig = _figure(10.0 if wide else 7.0, 4.6 if wide else 6.6)
+    fig = new_figure(10.0 if wide else 7.0, 4.6 if wide else 6.6)
     ax = fig.add_subplot()
     u, v = cmap.u_edges_deg, cmap.v_edges_deg
     hits = np.ma.masked_where(~cmap.in_fov | (cmap.counts == 0), cmap.counts)

@@ -52,13 +52,13 @@ def ghost_scenario(duration_s: float = 0.2, *, multipath: bool = True) -> Scenar
 def ghost_figure(path: str | Path, *, duration_s: float = 0.2) -> dict[str, int]:
     """Top view of the direct points, the ghosts behind the panel and the true surface points
     they came from. Returns the point counts."""
-    from .charts import _figure
+    from .charts import new_figure
     from .render import save_figure
 
     cloud = Simulation(ghost_scenario(duration_s)).run_frame(0)
     ghost = cloud["bounces"] > 0
     direct = ~ghost
-    fig = _figure(8.0, 6.0)
+    fig = new_figure(8.0, 6.0)
     ax = fig.add_subplot(1, 1, 1)
     ax.scatter(cloud["x"][direct], cloud["y"][direct], s=1, c="0.55", label="direct returns")
     ax.scatter(cloud["x_true"][ghost], cloud["y_true"][ghost], s=2, c="tab:blue",
@@ -131,11 +131,11 @@ def sun_angle_sweep(angles_deg: np.ndarray, duration_s: float = 0.1) -> dict[str
 
 def sun_figure(path: str | Path, *, duration_s: float = 0.1) -> dict[str, np.ndarray]:
     """False alarms and returns against the Sun's angle from the boresight."""
-    from .charts import _figure
+    from .charts import new_figure
     from .render import save_figure
 
     sweep = sun_angle_sweep(np.arange(0.0, 181.0, 10.0), duration_s)
-    fig = _figure(8.0, 4.5)
+    fig = new_figure(8.0, 4.5)
     ax = fig.add_subplot(1, 1, 1)
     ax.plot(sweep["angle"], sweep["false_alarms"], "o", c="tab:red",
             label="false alarms per pulse (simulated)")

@@ -26,6 +26,13 @@ from ..patterns.geometry import directions_from_az_el, directions_from_off_axis
 from ..scenario.datasheet import SensorDatasheet
 from ..scene.mesh import Mesh
 from .colouring import PointColours, part_colour, point_colours, short_part_names
+from .plotting import (
+    add_coloured_points,
+    add_legend,
+    add_points,
+    look,
+    oblique_view,
+)
 from .render import new_plotter, save_plotter
 from .run import Run
 
@@ -96,93 +103,14 @@ def fov_polydata(sheet: SensorDatasheet, depth_m: float, pose: Poses) -> tuple[A
     return pv.merge(surfaces), pv.merge(edges)
 
 
-def _look(plotter: Any, focus: np.ndarray, view_from: np.ndarray, up: np.ndarray,
-          zoom: float = 1.0) -> None:
-    """Aim the active camera at ``focus`` from direction ``view_from``, then fit the scene."""
-    view_from = np.asarray(view_from, dtype=float) / np.linalg.norm(view_from)
-    plotter.camera.focal_point = tuple(focus)
-    plotter.camera.position = tuple(np.asarray(focus) + view_from)
-    plotter.camera.up = tuple(up)
-    plotter.reset_camera()
-    plotter.camera.zoom(zoom)
 
 
-def _oblique_view(centre: np.ndarray) -> np.ndarray:
-    """A viewing direction (from ``centre`` toward the eye) beside and above the sensor."""
-    back = -centre / max(np.linalg.norm(centre), 1e-9)
-    return back + np.array([0.0, -0.3, 0.3])
 
 
-def _add_points(plotter: Any, points: np.ndarray, size: float, **kwargs: Any) -> None:
-    import pyvista as pv
-
-    if len(points):
-        plotter.add_mesh(pv.PolyData(np.ascontiguousarray(points)), point_size=size,
-                         render_points_as_spheres=True, **kwargs)
 
 
-def _add_coloured_points(plotter: Any, points: np.ndarray, colours: PointColours, size: float,
-                         clim: tuple[float, float] | None = None, bar_below: bool = False
-                         ) -> None:
-    """Points coloured by ``colours``: a part legend, or a colour bar (right, or below)."""
-    import pyvista as pv
-
-    if not len(points):
-        return
-    if colours.categorical:
-        present = np.unique(colours.values.astype(int))
-        for idx in present:
-            sel = colours.values == idx
-            _add_points(plotter, points[sel], size, color=part_colour(int(idx)))
-        _legend(plotter, [colours.names[int(i)] for i in present], present, "circle")
-        return
-    cloud = pv.PolyData(np.ascontiguousarray(points))
-    cloud.point_data[colours.label] = colours.values
-    if clim is None:
-        finite = colours.values[np.isfinite(colours.values)]
-        clim = (float(finite.min()), float(finite.max())) if len(finite) else (0.0, 1.0)
-    lo, hi, labels, fmt = nice_ticks(*clim)
-    place = {"vertical": False, "position_x": 0.3, "position_y": 0.03, "width": 0.4,
-             "height": 0.08} if bar_below else \
-        {"vertical": True, "position_x": 0.88, "position_y": 0.15, "height": 0.6, "width": 0.06}
-    new_bar = colours.label not in plotter.scalar_bars  # linked subplots share one bar
-    plotter.add_mesh(cloud, scalars=colours.label, cmap="turbo", point_size=size,
-                     render_points_as_spheres=True, clim=(lo, hi),
-                     scalar_bar_args={"title": colours.label, "color": "black", "fmt": fmt,
-                                      "n_labels": labels, "title_font_size": 14,
-                                      "label_font_size": 12, **place})
-    if bar_below and new_bar:  # VTK writes a horizontal bar's title over its tick labels
-        plotter.scalar_bars[colours.label].SetTitle("")
-        plotter.add_text(colours.label, position=(0.29, 0.045), viewport=True, font_size=9,
-                         color="black").GetTextProperty().SetJustificationToRight()
 
 
-def _legend(plotter: Any, names: list[str], indices: Any, face: str) -> None:
-    """A legend of part colours in the lower-right corner, wide enough for the longest name
-    (VTK scales the text to the box: a box too narrow cuts the names)."""
-    rows = len(names)
-    longest = max((len(n) for n in names), default=4)
-    height = min(0.028 * rows + 0.01, 0.5)
-    width = min(0.45, max(0.16, 0.02 + 0.01 * longest))  # VTK shrinks the text to fit
-    legend = plotter.add_legend([[name, part_colour(int(i))] for name, i in zip(names, indices)],
-                                bcolor="white", size=(width, height), loc="lower right",
-                                face=face, background_opacity=0.8)
-    # pyvista places a right-hand legend by its height, not its width: put it inside
-    legend.SetPosition(1.0 - width - 0.02, 0.05)
-
-
-def nice_ticks(lo: float, hi: float, max_ticks: int = 6) -> tuple[float, float, int, str]:
-    """A colour-bar range widened to round numbers: ``(lo, hi, labels, printf format)``, the
-    labels at a step of 1, 2 or 5 times a power of ten with as many decimals as it needs."""
-    if not (math.isfinite(lo) and math.isfinite(hi)) or hi <= lo:
-        return lo, hi if hi > lo else lo + 1.0, 2, "%.4g"
-    raw = (hi - lo) / (max_ticks - 1)
-    power = 10 ** math.floor(math.log10(raw))
-    step = next(m * power for m in (1, 2, 5, 10) if m * power >= raw)
-    start, stop = math.floor(lo / step) * step, math.ceil(hi / step) * step
-    labels = int(round((stop - start) / step)) + 1
-    decimals = max(0, -math.floor(math.log10(step) + 1e-9))
-    return start, stop, labels, f"%.{decimals}f"
 
 
 def _meshes_in_sensor_frame(run: Run) -> list[Any]:
@@ -238,7 +166,7 @@ def scene_figure(run: Run, path: str | Path, window_size: tuple[int, int] = (150
                                  [name], font_size=15, shape=None, text_color="#333333",
                                  show_points=False, always_visible=True)
     focus = origin + 0.5 * (depth if depth > 0 else far) * axes[0]
-    _look(plotter, focus, -0.5 * axes[0] - 1.0 * axes[1] + 0.45 * axes[2], axes[2], zoom=1.45)
+    look(plotter, focus, -0.5 * axes[0] - 1.0 * axes[1] + 0.45 * axes[2], axes[2], zoom=1.45)
     plotter.add_axes(color="black", xlabel="X", ylabel="Y", zlabel="Z")
     targets = ", ".join(f"{name} centre at {np.linalg.norm(c - origin):.1f} m"
                         for name, c in zip(run.noisy.frame.target_names, centres))
@@ -388,9 +316,9 @@ def errors_figure(run: Run, path: str | Path, *, patch_points: int = 1500,
     labels = ("a) without errors", "b) with angular and range errors")
     for col, (cloud, label) in enumerate(zip((clean, noisy), labels)):
         plotter.subplot(0, col)
-        _add_coloured_points(plotter, cloud.xyz, PointColours(cloud["range"], "range (m)"), 3.0,
+        add_coloured_points(plotter, cloud.xyz, PointColours(cloud["range"], "range (m)"), 3.0,
                              clim=(float(lo), float(hi)), bar_below=True)
-        _look(plotter, centre, _oblique_view(centre), np.array([0.0, 0.0, 1.0]), zoom=1.3)
+        look(plotter, centre, oblique_view(centre), np.array([0.0, 0.0, 1.0]), zoom=1.3)
         _title(plotter, f"{label}: {len(cloud):,} points (cf. paper Fig. 11)", 11)
     if len(clean) < 10:
         return save_plotter(plotter, path)
@@ -401,16 +329,16 @@ def errors_figure(run: Run, path: str | Path, *, patch_points: int = 1500,
                                                    (CLEAN_COLOUR, NOISY_COLOUR), labels)):
         view = views[key]
         plotter.subplot(1, col)
-        _add_points(plotter, view.local * [1.0, 1.0, 0.0], 5.0, color=colour)
+        add_points(plotter, view.local * [1.0, 1.0, 0.0], 5.0, color=colour)
         plotter.enable_parallel_projection()
-        _look(plotter, np.zeros(3), np.array([0.0, 0.0, 1.0]), np.array([0.0, 1.0, 0.0]))
+        look(plotter, np.zeros(3), np.array([0.0, 0.0, 1.0]), np.array([0.0, 1.0, 0.0]))
         plotter.camera.parallel_scale = 1.05 * radius
         _title(plotter, f"{label[:2]} flat patch face-on, {2 * radius:.2f} m across: "
                         f"{len(view.local):,} points", 10)
         plotter.subplot(2, col)
-        _add_points(plotter, view.local * [1.0, 1.0, stretch], 4.0, color=colour)
+        add_points(plotter, view.local * [1.0, 1.0, stretch], 4.0, color=colour)
         plotter.enable_parallel_projection()
-        _look(plotter, np.zeros(3), np.array([0.0, -1.0, 0.0]), np.array([0.0, 0.0, 1.0]))
+        look(plotter, np.zeros(3), np.array([0.0, -1.0, 0.0]), np.array([0.0, 0.0, 1.0]))
         plotter.camera.parallel_scale = 0.45 * radius
         _title(plotter, f"{label[:2]} same patch edge-on, normal axis ×{stretch:g}: "
                         f"spread off the plane (1 sigma) = {view.spread_mm:.1f} mm", 10)
@@ -431,7 +359,7 @@ def cloud_figure(run: Run, path: str | Path, colour_by: str = "part",
     names = short_part_names(run.simulation.part_names)
     corners = np.vstack([np.array(m.bounds).reshape(3, 2).T for m in meshes])
     centre = (corners.min(axis=0) + corners.max(axis=0)) / 2
-    view = _oblique_view(centre)
+    view = oblique_view(centre)
     plotter = new_plotter(shape=(1, 2), window_size=window_size)
     plotter.subplot(0, 0)
     present = set()
@@ -440,14 +368,14 @@ def cloud_figure(run: Run, path: str | Path, colour_by: str = "part",
             plotter.add_mesh(poly.extract_cells(np.flatnonzero(poly.cell_data["part"] == idx)),
                              color=part_colour(int(idx)), specular=0.2)
             present.add(int(idx))
-    _legend(plotter, [names[i] for i in sorted(present)], sorted(present), "rectangle")
-    _look(plotter, centre, view, np.array([0.0, 0.0, 1.0]), zoom=1.05)
+    add_legend(plotter, [names[i] for i in sorted(present)], sorted(present), "rectangle")
+    look(plotter, centre, view, np.array([0.0, 0.0, 1.0]), zoom=1.05)
     _title(plotter, "a) target model by part (cf. paper Fig. 12a)")
     plotter.subplot(0, 1)
     for poly in meshes:
         plotter.add_mesh(poly, color=MESH_COLOUR, opacity=0.25)
-    _add_coloured_points(plotter, cloud.xyz, colours, 3.5, bar_below=True)
-    _look(plotter, centre, view, np.array([0.0, 0.0, 1.0]), zoom=1.05)
+    add_coloured_points(plotter, cloud.xyz, colours, 3.5, bar_below=True)
+    look(plotter, centre, view, np.array([0.0, 0.0, 1.0]), zoom=1.05)
     _title(plotter, f"b) simulated cloud, {len(cloud):,} points, coloured by {colour_by} "
                     "(cf. paper Fig. 12b)")
     plotter.link_views()
