@@ -108,7 +108,6 @@ SPLIT: dict[str, dict[str, str]] = {
         "quiet_numerics": "base.numerics",
     },
     "limits": {
-        "check_integration": "trajectories.tumbling",
         "check_simulation": "pipeline.budget",
         "coverage_cells": "patterns.fov",
     },
@@ -171,13 +170,9 @@ class _Moved(types.ModuleType):
                                  f"{name!r}") from None
 
     def __dir__(self) -> list[str]:
-        homes = {MOVED[self._old], *SPLIT.get(self._old, {}).values()}
-        names = set()
-        for home in homes:
-            module = importlib.import_module(f"{PACKAGE}.{home}")
-            names |= {n for n in vars(module) if not n.startswith("_")}
-        return sorted(names & ({*SPLIT.get(self._old, {})} | set(
-            vars(importlib.import_module(f"{PACKAGE}.{MOVED[self._old]}")))))
+        main = importlib.import_module(f"{PACKAGE}.{MOVED[self._old]}")
+        return sorted({n for n in vars(main) if not n.startswith("_")} |
+                      set(SPLIT.get(self._old, {})))
 
 
 class _Loader(importlib.abc.Loader):
@@ -197,7 +192,7 @@ class _Loader(importlib.abc.Loader):
 
 
 class _Finder(importlib.abc.MetaPathFinder):
-    """Finds the old paths of :data:`MOVED` (consulted after the regular finders)."""
+    """Finds the old paths of :data:`MOVED` (and nothing else)."""
 
     def find_spec(self, fullname: str, path: Any = None,
                   target: Any = None) -> importlib.machinery.ModuleSpec | None:
@@ -210,6 +205,7 @@ class _Finder(importlib.abc.MetaPathFinder):
 
 
 def install() -> None:
-    """Register the finder once (after the regular ones: real modules always win)."""
+    """Register the finder once, first: an old name inside a moved package (``stages.sun``)
+    would otherwise be found again as a second copy of the module."""
     if not any(isinstance(finder, _Finder) for finder in sys.meta_path):
-        sys.meta_path.append(_Finder())
+        sys.meta_path.insert(0, _Finder())

@@ -47,8 +47,8 @@ def main() -> None:
     resource.setrlimit(resource.RLIMIT_AS, (memory, memory))
     protocol = os.fdopen(os.dup(sys.stdout.fileno()), "w", buffering=1)
     os.environ.setdefault("LIDARSIM_DISABLE_PLUGIN_AUTOLOAD", "1")
-    from lidarsim_core import cli
     import lidarsim_core.pipeline  # noqa: F401  (imported before a case's clock starts)
+    from lidarsim_core import cli
 
     if os.environ.get("LIDARSIM_FUZZ_DISABLE"):
         _disable(os.environ["LIDARSIM_FUZZ_DISABLE"])

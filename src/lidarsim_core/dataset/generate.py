@@ -22,7 +22,6 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterator
@@ -43,6 +42,14 @@ from .bags import (
     BagFormat,
     check_bag_sequences,
     write_sequence_bag,
+)
+from .checks import (
+    check_dataset_dir,
+    check_directory,
+    refuse,
+    remove_created,
+    scenario_differences,
+    validate_sequences,
 )
 from .config import DatasetPlan, SequencePlan, load_plan, scenario_variant
 from .executors import run_dask, run_serial
@@ -72,6 +79,7 @@ from .lock import dataset_lock, remove_stale_parts
 from .manifest import read_manifest, write_manifest
 from .poses import PosesFile
 from .progress import FrameProgress
+from .sequence import SequenceRun
 from .splits import assign_splits, splits_record, trajectory_key
 
 #: Name of the only sequence of a dataset made from one scenario.
@@ -112,21 +120,6 @@ class DatasetResult:
         return self.root / MANIFEST
 
 
-@dataclass
-class _Sequence:
-    plan: SequencePlan
-    root: Path
-    data: dict[str, Any]  # normalised scenario dump
-    scenario: Scenario | None = None
-    frames: int = 0
-    identity: dict[str, Any] | None = None
-    poses: PosesFile | None = None
-    group: str = ""
-    sim: Any = None
-
-    @property
-    def copy_path(self) -> Path:
-        return self.root / SCENARIO_COPY
 
 
 def _plan_for(source: Scenario | str | Path, frames: int | None) -> DatasetPlan:
@@ -143,98 +136,19 @@ def _plan_for(source: Scenario | str | Path, frames: int | None) -> DatasetPlan:
     return plan
 
 
-def _check_directory(root: Path, manifest: dict[str, Any] | None) -> None:
-    if manifest is not None:
-        return
-    # a run killed before its first manifest leaves only these; anything else is not ours
-    ours = {LOCK, INPUTS_DIR, SCENARIO_COPY, DATASET_COPY, "sequences"}
-    foreign = [p.name for p in root.iterdir()
-               if p.name not in ours and not (p.name.startswith(".") and p.name.endswith(".part"))]
-    if foreign:
-        raise OutputError(f"directory is not empty and holds no lidarsim dataset "
-                          f"({', '.join(sorted(foreign)[:3])}...); choose an empty or new "
-                          "--out directory", source=root)
 
 
-def check_dataset_dir(root: Path) -> None:
-    """Refuse an output directory that cannot be a dataset before anything is created: a
-    file, a name too long, or a place (the directory, or its nearest existing parent) that
-    is read-only or not writable."""
-    from ..base.oserrors import describe_os_error
-
-    try:
-        if root.exists() and not root.is_dir():
-            raise OutputError("--out must be a directory", source=root)
-        place = root
-        while not place.exists():
-            place = place.parent
-    except OSError as exc:
-        raise OutputError(f"cannot use this directory: {describe_os_error(exc)}",
-                          source=root) from None
-    if not place.is_dir():
-        raise OutputError(f"a parent of the directory is a file: {place}", source=root)
-    try:
-        name_max = os.pathconf(place, "PC_NAME_MAX")
-    except (OSError, ValueError):
-        name_max = 255
-    for part in root.relative_to(place).parts if place != root else ():
-        if len(os.fsencode(part)) > name_max:
-            raise OutputError(f"directory name too long: {len(os.fsencode(part))} bytes, and "
-                              f"this file system allows {name_max}", source=root)
-    try:
-        read_only = bool(os.statvfs(place).f_flag & os.ST_RDONLY)
-    except (OSError, AttributeError):
-        read_only = False
-    if read_only:
-        raise OutputError(f"{place} is on a read-only file system", source=root)
-    if not os.access(place, os.W_OK | os.X_OK):
-        raise OutputError(f"{place} is not writable", source=root)
 
 
-def validate_sequences(plan: DatasetPlan) -> None:
-    """Build every sequence's simulation from the user's files (meshes, datasheets,
-    trajectories, the resource budget) before the dataset directory is touched.
-
-    Sequences that differ only by seed share one check.
-    """
-    from ..pipeline.simulation import Simulation
-
-    seen: set[str] = set()
-    for seq in plan.sequences:
-        data = seq.scenario.model_dump(mode="json")
-        data.pop("seed", None)
-        key = f"{seq.scenario.source}|{json.dumps(data, sort_keys=True)}"
-        if key in seen:
-            continue
-        seen.add(key)
-        Simulation(seq.scenario)
 
 
-def remove_created(root: Path, before: set[str]) -> None:
-    """Delete what a failed first run created in ``root`` (everything not in ``before``,
-    except the lock, which its holder removes)."""
-    for name in set(os.listdir(root)) - before - {LOCK}:
-        path = root / name
-        if path.is_dir() and not path.is_symlink():
-            shutil.rmtree(path, ignore_errors=True)
-        else:
-            path.unlink(missing_ok=True)
 
 
-def _refuse(root: Path, lines: list[str]) -> None:
-    shown = "; ".join(lines[:6]) + (f"; and {len(lines) - 6} more" if len(lines) > 6 else "")
-    raise OutputError(f"holds a dataset made differently ({shown}); use another --out "
-                      "directory, or delete this one to start over", source=root)
 
 
-def _old_scenario(path: Path) -> dict[str, Any] | None:
-    try:
-        return yaml.safe_load(path.read_text(encoding="utf-8"))
-    except (OSError, yaml.YAMLError):
-        return None
 
 
-def _normalise(plan: DatasetPlan, root: Path, copier: InputCopier) -> list[_Sequence]:
+def _normalise(plan: DatasetPlan, root: Path, copier: InputCopier) -> list[SequenceRun]:
     registry = get_registry()
     out = []
     for seq in plan.sequences:
@@ -242,22 +156,10 @@ def _normalise(plan: DatasetPlan, root: Path, copier: InputCopier) -> list[_Sequ
         normal = normalize_scenario(seq.scenario, registry)
         data = normal.model_dump(mode="json")
         copier.localize(normal, data, seq_root)
-        out.append(_Sequence(seq, seq_root, data))
+        out.append(SequenceRun(seq, seq_root, data))
     return out
 
 
-def _scenario_differences(root: Path, sequences: list[_Sequence],
-                          manifest: dict[str, Any]) -> list[str]:
-    old_names = [s["name"] for s in manifest.get("identity", {}).get("sequences", [])]
-    new_names = [s.plan.name for s in sequences]
-    if old_names != new_names:
-        return [f"sequences: {old_names} → {new_names}"]
-    lines = []
-    for seq in sequences:
-        old = _old_scenario(seq.copy_path)
-        prefix = "" if len(sequences) == 1 else f"{seq.plan.name}: "
-        lines += [prefix + line for line in differences(old, seq.data)]
-    return lines
 
 
 def _write_text(path: Path, text: str) -> None:
@@ -273,7 +175,7 @@ def _cloud_path(frame: int, suffix: str) -> str:
     return BAG_NAME if suffix == BagFormat.suffixes[0] else frame_relpath(frame, suffix)
 
 
-def _prepare_sequence(seq: _Sequence, suffix: str) -> None:
+def _prepare_sequence(seq: SequenceRun, suffix: str) -> None:
     from ..pipeline.simulation import Simulation
 
     _write_text(seq.copy_path, yaml.safe_dump(seq.data, sort_keys=False))
@@ -286,7 +188,7 @@ def _prepare_sequence(seq: _Sequence, suffix: str) -> None:
     seq.group = seq.plan.group or trajectory_key(seq.scenario)
 
 
-def _splits(plan: DatasetPlan, sequences: list[_Sequence]) -> tuple[dict[str, str], Any]:
+def _splits(plan: DatasetPlan, sequences: list[SequenceRun]) -> tuple[dict[str, str], Any]:
     if not plan.multi or len(sequences) < 2 or plan.config is None:
         return {}, None
     groups: dict[str, list[str]] = {}
@@ -300,7 +202,7 @@ def _splits(plan: DatasetPlan, sequences: list[_Sequence]) -> tuple[dict[str, st
     return assignment, record
 
 
-def _write_split_lists(root: Path, sequences: list[_Sequence], assignment: dict[str, str],
+def _write_split_lists(root: Path, sequences: list[SequenceRun], assignment: dict[str, str],
                        record: dict[str, Any], suffix: str) -> None:
     _write_text(root / SPLITS, json.dumps(record, indent=1, sort_keys=True) + "\n")
     for split, names in record["splits"].items():
@@ -317,7 +219,7 @@ def _write_split_lists(root: Path, sequences: list[_Sequence], assignment: dict[
                     stream.write(f"{rel}/{path}\n".encode("utf-8"))
 
 
-def _dataset_copy(plan: DatasetPlan, root: Path, sequences: list[_Sequence],
+def _dataset_copy(plan: DatasetPlan, root: Path, sequences: list[SequenceRun],
                   exporter: dict[str, Any]) -> str:
     assert plan.config is not None
     config = plan.config
@@ -336,7 +238,7 @@ def _dataset_copy(plan: DatasetPlan, root: Path, sequences: list[_Sequence],
     return yaml.safe_dump(data, sort_keys=False)
 
 
-def _sequence_summary(root: Path, seq: _Sequence, split: str | None, bag: bool
+def _sequence_summary(root: Path, seq: SequenceRun, split: str | None, bag: bool
                       ) -> dict[str, Any]:
     rel = seq.root.relative_to(root).as_posix() if seq.root != root else "."
     assert seq.scenario is not None
@@ -444,21 +346,21 @@ def generate_dataset(source: Scenario | str | Path, out: str | Path, *,
     existed = root.exists()
     before = set(os.listdir(root)) if existed else set()
     if existed and not (root / MANIFEST).exists() and not (root / LOCK).exists():
-        _check_directory(root, None)  # a foreign directory is refused before the lock
+        check_directory(root, None)  # a foreign directory is refused before the lock
     root.mkdir(parents=True, exist_ok=True)
     first_run = False
     with dataset_lock(root):
         manifest = read_manifest(root / MANIFEST)
         first_run = manifest is None
         try:
-            _check_directory(root, manifest)
+            check_directory(root, manifest)
             copier = InputCopier(root)
             sequences = _normalise(plan, root, copier)
             if manifest is not None:
-                lines = _scenario_differences(root, sequences, manifest)
+                lines = scenario_differences(root, sequences, manifest)
                 if lines:
                     copier.forget_created()
-                    _refuse(root, lines)
+                    refuse(root, lines)
             try:
                 return _run(plan, root, sequences, exporter, manifest, suffix, workers=workers,
                             scheduler=scheduler, display=None if quiet else display,
@@ -483,7 +385,7 @@ def generate_dataset(source: Scenario | str | Path, out: str | Path, *,
                 (root / LOCK).unlink(missing_ok=True)
 
 
-def _run(plan: DatasetPlan, root: Path, sequences: list[_Sequence], exporter: Any,
+def _run(plan: DatasetPlan, root: Path, sequences: list[SequenceRun], exporter: Any,
          manifest: dict[str, Any] | None, suffix: str, *, workers: int | None,
          scheduler: str | None, display: Any, verify: bool, spool_memory: int
          ) -> DatasetResult:
@@ -495,7 +397,7 @@ def _run(plan: DatasetPlan, root: Path, sequences: list[_Sequence], exporter: An
     identity = dataset_identity([s.identity for s in sequences if s.identity], exp_id,
                                 multi=plan.multi, packages=package_versions(exporter.requires))
     if manifest is not None and manifest.get("identity") != identity:
-        _refuse(root, differences(manifest.get("identity"), identity))
+        refuse(root, differences(manifest.get("identity"), identity))
     remove_stale_parts([root, root / INPUTS_DIR, root / SPLITS_DIR] +
                        [d for s in sequences for d in (s.root, s.root / FRAMES_DIR)])
     assignment, split_record = _splits(plan, sequences)
@@ -548,7 +450,7 @@ def _run(plan: DatasetPlan, root: Path, sequences: list[_Sequence], exporter: An
                          progress.elapsed)
 
 
-def _bag_record(seq: _Sequence, verify: bool = False) -> dict[str, Any] | None:
+def _bag_record(seq: SequenceRun, verify: bool = False) -> dict[str, Any] | None:
     """The sidecar record of the sequence's bag if it is complete (and holds every frame)."""
     record = frame_is_complete(seq.root / BAG_NAME, verify=verify)
     if record is None or record.get("frames") != seq.frames or \
@@ -557,7 +459,7 @@ def _bag_record(seq: _Sequence, verify: bool = False) -> dict[str, Any] | None:
     return record
 
 
-def _run_bags(root: Path, sequences: list[_Sequence], exporter: BagFormat,
+def _run_bags(root: Path, sequences: list[SequenceRun], exporter: BagFormat,
               identity: dict[str, Any], summaries: list[dict[str, Any]],
               splits: dict[str, Any] | None, *, display: Any, verify: bool) -> DatasetResult:
     """Write the bag of every sequence whose bag is not complete, then the final manifest."""
@@ -600,7 +502,7 @@ def _run_bags(root: Path, sequences: list[_Sequence], exporter: BagFormat,
                          progress.elapsed)
 
 
-def _finish(root: Path, sequences: list[_Sequence], identity: dict[str, Any],
+def _finish(root: Path, sequences: list[SequenceRun], identity: dict[str, Any],
             summaries: list[dict[str, Any]], splits: dict[str, Any] | None, suffix: str) -> None:
     totals = {"frames": 0, "points": 0, "bytes": 0}
 

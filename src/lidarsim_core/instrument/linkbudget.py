@@ -1,4 +1,4 @@
-"""The link budget: received signal, detection probability and intensity of a return.
+r"""The link budget: received signal, detection probability and intensity of a return.
 
 Signal
 ------

@@ -33,14 +33,8 @@ import pytest
 
 from ..backends.base import Hits, RayBackend
 from ..scene.mesh import Mesh
-from .ray_cases import (
-    RayCase,
-    canonical_cases,
-    distance_to_triangle_edges,
-    mesh_scale,
-    reference_intersect,
-    satellite_rays,
-)
+from .ray_cases import RayCase, canonical_cases, distance_to_triangle_edges, mesh_scale
+from .reference import reference_intersect, satellite_rays
 
 #: Identifiers of the canonical cases run by :meth:`BackendConformance.test_canonical_scene`.
 CASE_IDS: tuple[str, ...] = (

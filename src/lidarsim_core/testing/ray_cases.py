@@ -22,12 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..backends.base import Hits
 from ..scene.mesh import Mesh
-
-#: Sides of an axis-aligned box in face order: side ``s`` owns faces ``2s`` and ``2s + 1``.
-BOX_SIDES: tuple[tuple[int, float], ...] = ((0, -1.0), (0, 1.0), (1, -1.0), (1, 1.0),
-                                            (2, -1.0), (2, 1.0))
+from .meshes import BOX_SIDES, box_mesh, icosphere_mesh, plate_mesh, unit
 
 
 @dataclass(frozen=True)
@@ -59,10 +55,6 @@ class RayCase:
         return len(self.origins)
 
 
-def unit(vectors: np.ndarray) -> np.ndarray:
-    """Rows of ``vectors`` scaled to unit length."""
-    vectors = np.asarray(vectors, dtype=np.float64)
-    return vectors / np.linalg.norm(vectors, axis=-1, keepdims=True)
 
 
 def mesh_scale(mesh: Mesh) -> float:
@@ -115,56 +107,10 @@ def _case(name: str, mesh: Mesh, origins: np.ndarray, directions: np.ndarray,
     return RayCase(name, mesh, origins, directions, distance, faces)
 
 
-# ---- meshes -----------------------------------------------------------------------------
-def box_mesh(lo: np.ndarray, hi: np.ndarray, *, name: str = "box",
-             open_sides: tuple[int, ...] = ()) -> Mesh:
-    """Axis-aligned box, outward normals; side ``s`` of :data:`BOX_SIDES` is faces 2s, 2s+1.
-
-    ``open_sides`` lists sides left out (an open, not watertight box); the face numbering of
-    the remaining sides then closes up.
-    """
-    lo, hi = np.asarray(lo, dtype=np.float64), np.asarray(hi, dtype=np.float64)
-    corners = np.array([[(lo, hi)[i][0], (lo, hi)[j][1], (lo, hi)[k][2]]
-                        for k in (0, 1) for j in (0, 1) for i in (0, 1)])
-    faces = []
-    for s, (axis, sign) in enumerate(BOX_SIDES):
-        if s in open_sides:
-            continue
-        u, v = [a for a in range(3) if a != axis]
-        bit = 1 if sign > 0 else 0
-
-        def corner(bu: int, bv: int, _axis=axis, _u=u, _v=v, _bit=bit) -> int:
-            bits = [0, 0, 0]
-            bits[_axis], bits[_u], bits[_v] = _bit, bu, bv
-            return bits[0] + 2 * bits[1] + 4 * bits[2]
-
-        quad = [corner(0, 0), corner(1, 0), corner(1, 1), corner(0, 1)]
-        for tri in ([quad[0], quad[1], quad[2]], [quad[0], quad[2], quad[3]]):
-            n = np.cross(corners[tri[1]] - corners[tri[0]], corners[tri[2]] - corners[tri[0]])
-            if n[axis] * sign < 0:
-                tri = [tri[0], tri[2], tri[1]]
-            faces.append(tri)
-    return Mesh.from_arrays(corners, np.array(faces), name=name)
 
 
-def plate_mesh(center: tuple[float, float, float], half: float, axis: int = 2, *,
-               name: str = "plate") -> Mesh:
-    """Zero-thickness square of half-size ``half`` normal to ``axis`` (two triangles)."""
-    u, v = [a for a in range(3) if a != axis]
-    quad = np.zeros((4, 3))
-    for i, (su, sv) in enumerate(((-1, -1), (1, -1), (1, 1), (-1, 1))):
-        quad[i, u], quad[i, v] = su * half, sv * half
-    return Mesh.from_arrays(quad + np.asarray(center, dtype=np.float64),
-                            np.array([[0, 1, 2], [0, 2, 3]]), name=name)
 
 
-def icosphere_mesh(radius: float, subdivisions: int = 3) -> Mesh:
-    """Icosphere of the given circumradius centred on the origin (outward normals)."""
-    import trimesh
-
-    sphere = trimesh.creation.icosphere(subdivisions=subdivisions, radius=radius)
-    return Mesh.from_arrays(np.asarray(sphere.vertices), np.asarray(sphere.faces),
-                            name="icosphere")
 
 
 def _box_exit(lo: np.ndarray, hi: np.ndarray, origins: np.ndarray,
@@ -532,58 +478,8 @@ def canonical_cases(epsilon: float = 1e-6) -> dict[str, RayCase]:
     return cases
 
 
-# ---- independent reference ------------------------------------------------------------------
-def reference_intersect(mesh: Mesh, origins: np.ndarray, directions: np.ndarray,
-                        epsilon: float = 1e-6, chunk: int = 64) -> Hits:
-    """Closest hits by testing every ray against every triangle (float64 Möller–Trumbore).
-
-    Degenerate faces and rays parallel to a face never hit; ties keep the lowest face index.
-    Costs ``O(rays × faces)``: meant for a few thousand rays against ~10⁴ faces.
-    """
-    origins = np.asarray(origins, dtype=np.float64).reshape(-1, 3)
-    directions = np.asarray(directions, dtype=np.float64).reshape(-1, 3)
-    tri = mesh.triangles
-    v0, e1, e2 = tri[:, 0], tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
-    usable = mesh.face_areas > 0
-    n = len(origins)
-    distance = np.full(n, np.nan)
-    face = np.full(n, -1, dtype=np.int64)
-    for lo in range(0, n, chunk):
-        o = origins[lo:lo + chunk, None, :]
-        d = directions[lo:lo + chunk, None, :]
-        p = np.cross(d, e2)
-        det = np.einsum("rfk,fk->rf", p, e1)
-        parallel = np.abs(det) <= 1e-14 * np.linalg.norm(e1, axis=1) * np.linalg.norm(e2, axis=1)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            inv = 1.0 / det
-            s = o - v0
-            u = np.einsum("rfk,rfk->rf", s, p) * inv
-            q = np.cross(s, e1)
-            v = np.einsum("rfk,rfk->rf", np.broadcast_to(d, q.shape), q) * inv
-            t = np.einsum("rfk,fk->rf", q, e2) * inv
-        ok = usable & ~parallel & (u >= 0) & (v >= 0) & (u + v <= 1) & (t > epsilon)
-        t = np.where(ok, t, np.inf)
-        best = np.argmin(t, axis=1)
-        tb = t[np.arange(len(best)), best]
-        hit = np.isfinite(tb)
-        distance[lo:lo + chunk][hit] = tb[hit]
-        face[lo:lo + chunk][hit] = best[hit]
-    normal = np.full((n, 3), np.nan)
-    normal[face >= 0] = mesh.face_normals[face[face >= 0]]
-    return Hits(distance, face, normal)
 
 
-def satellite_rays(mesh: Mesh, n: int, seed: int = 7) -> tuple[np.ndarray, np.ndarray]:
-    """Rays at a satellite from all around: origins 1.5–4 bounding radii from its centre
-    (a tenth of them 2 km away), aimed at random points of its bounding box."""
-    rng = np.random.default_rng(seed)
-    lo, hi = mesh.bounds
-    center, radius = (lo + hi) / 2, float(np.linalg.norm(hi - lo) / 2)
-    dist = rng.uniform(1.5, 4.0, (n, 1)) * radius
-    dist[: n // 10] = 2000.0
-    origins = center + unit(rng.normal(size=(n, 3))) * dist
-    aims = lo + rng.uniform(0.0, 1.0, (n, 3)) * (hi - lo)
-    return origins, unit(aims - origins)
 
 
 def distance_to_triangle_edges(mesh: Mesh, face: np.ndarray, points: np.ndarray) -> np.ndarray:

@@ -1,4 +1,4 @@
-"""Multipath: specular bounces and the ghost returns they make (docs/realism.md, "Multipath").
+r"""Multipath: specular bounces and the ghost returns they make (docs/realism.md, "Multipath").
 
 A pulse whose surface has a specular component (``specular_reflectance`` F > 0) continues
 along the mirror direction ``d' = d − 2 (d·n) n`` and is cast again through the same backend

@@ -1,4 +1,4 @@
-"""Receiver dynamic range: saturation and range walk (docs/realism.md, "Receiver dynamic
+r"""Receiver dynamic range: saturation and range walk (docs/realism.md, "Receiver dynamic
 range").
 
 **Saturation.** The receiver's output clips at a signal ``S_sat`` (threshold units of the

@@ -1,4 +1,4 @@
-"""The Sun: shadows, solar background false alarms and blinding (docs/realism.md, "The Sun").
+r"""The Sun: shadows, solar background false alarms and blinding (docs/realism.md, "The Sun").
 
 **Background.** A pulse's footprint on a surface of diffuse reflectivity ρ_d, lit by the Sun at
 incidence θ_s, sends the receiver in-band background light; where a shadow ray from the hit
