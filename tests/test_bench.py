@@ -88,7 +88,8 @@ SUITE = {"duration_s": 0.1, "rounds": 2, "scenes": {"tumbling-risley": {
 def test_cli_prints_the_benchmark(monkeypatch, as_json, with_suite):
     from lidarsim_core.cli import app
     fake = {**FAKE, "suite": SUITE} if with_suite else FAKE
-    monkeypatch.setattr(bench, "run_benchmark", lambda quick=False: fake)
+    monkeypatch.setattr("lidarsim_core.bench.throughput.run_benchmark",
+                        lambda quick=False: fake)
     result = CliRunner().invoke(app, ["bench", "--quick"] + (["--json"] if as_json else []))
     assert result.exit_code == 0, result.output
     if as_json:

@@ -161,7 +161,7 @@ def test_no_culling_for_models_it_cannot_bound_or_false_alarms():
 
     sim = Simulation(scenario_from_dict(_demo()))
     sim.noise.append(Wobble())
-    assert PulseCuller.for_simulation(sim) is None
+    assert PulseCuller.for_context(sim.context) is None
     data = _demo(noise=[{"name": "angular"}, {"name": "range"}, {"name": "false_alarms",
                                                                   "options": {"rate_hz": 1e5}}])
     assert Simulation(scenario_from_dict(data)).culler is None

@@ -162,7 +162,7 @@ def test_strong_returns_are_all_detected_with_unchanged_noise():
 
 
 def test_detection_is_independent_of_chunking_and_threads(monkeypatch):
-    import lidarsim_core.pipeline as pipeline_module
+    import lidarsim_core.pipeline.simulation as pipeline_module
 
     sc = _plate_scenario(130.0, 0.2, detection={})
     reference = Simulation(sc).run_frame(0)

@@ -175,7 +175,7 @@ def test_second_returns_get_independent_range_noise():
 
 
 def test_divergence_is_independent_of_chunking_and_threads(monkeypatch):
-    import lidarsim_core.pipeline as pipeline_module
+    import lidarsim_core.pipeline.simulation as pipeline_module
 
     sc = _edge_scene(0.3, noise=[{"name": "angular"}, {"name": "range"}])
     reference = Simulation(sc).run_frame(0)

@@ -145,7 +145,7 @@ def test_an_interrupt_behind_a_kernel_error_is_found():
     ("KeyboardInterrupt", 130, "error: interrupted; no partial output was kept")])
 def test_cli_reports_an_interrupt_surfacing_through_a_kernel_as_the_interrupt(
         interrupt, code, line, capsys):
-    from lidarsim_core import cli
+    from lidarsim_core.cli import errors as cli_errors
     from lidarsim_core.base import signals as guard
 
     cause = guard.Terminated() if interrupt == "Terminated" else KeyboardInterrupt()
@@ -156,7 +156,7 @@ def test_cli_reports_an_interrupt_surfacing_through_a_kernel_as_the_interrupt(
     import typer
 
     with pytest.raises(typer.Exit) as info:
-        cli.run_guarded(body)
+        cli_errors.run_guarded(body)
     assert info.value.exit_code == code
     assert capsys.readouterr().err.strip() == line
 
@@ -172,7 +172,7 @@ def test_simulation_reraises_an_interrupt_surfacing_through_a_kernel(monkeypatch
     def interrupted(*args, **kwargs):
         raise _surfacing_through_a_kernel(term)
 
-    monkeypatch.setattr(sim, "_process", interrupted)
+    monkeypatch.setattr("lidarsim_core.pipeline.simulation.process_piece", interrupted)
     with pytest.raises(Terminated) as info:
         sim.run_frame(0)
     assert info.value is term

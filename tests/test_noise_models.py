@@ -228,7 +228,7 @@ def test_switched_off_model_is_bit_identical_to_the_noiseless_run(noiseless, mod
      {"name": "range_growing", "options": {"sigma_m": 0.02}}],
 ])
 def test_noise_is_independent_of_chunking_and_threads(monkeypatch, noise):
-    import lidarsim_core.pipeline as pipeline_module
+    import lidarsim_core.pipeline.simulation as pipeline_module
 
     reference = _run(noise=noise, duration_s=0.2)
     monkeypatch.setattr(pipeline_module, "PIECE_RAYS", 301)

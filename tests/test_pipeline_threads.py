@@ -7,7 +7,7 @@ import threading
 import numpy as np
 import pytest
 
-from lidarsim_core import pipeline as pipeline_module
+from lidarsim_core.pipeline import simulation as pipeline_module
 from lidarsim_core.backends.numpy_backend import NumpyBackend
 from lidarsim_core.pipeline import Simulation
 from lidarsim_core.scenario.demo import demo_scenario

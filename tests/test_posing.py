@@ -129,7 +129,7 @@ def test_a_subclass_overriding_poses_at_and_plugins_take_the_general_path():
 def test_poses_are_computed_once_per_piece_and_the_frame_matches_the_scipy_path(monkeypatch):
     """The tumbling hold: trajectories are evaluated once per piece (culling and casting
     share them), and the points agree with the SciPy path of ``poses_at`` to 1e-12 m."""
-    import lidarsim_core.geometry.posing as posing
+    import lidarsim_core.trajectories.matrices as posing
 
     scenario = load_scenario(EXAMPLES / "envisat_tumbling_hold.yaml")
     sim = Simulation(scenario)
@@ -140,7 +140,7 @@ def test_poses_are_computed_once_per_piece_and_the_frame_matches_the_scipy_path(
         calls["n"] += 1
         return original(trajectory, t)
 
-    monkeypatch.setattr("lidarsim_core.pipeline.pose_matrices", counting)
+    monkeypatch.setattr("lidarsim_core.pipeline.context.pose_matrices", counting)
     monkeypatch.setenv("LIDARSIM_THREADS", "1")
     fast = sim.run_frame(0, chunk_rays=4096)
     k0, k1 = sim.frame_rays(0)

@@ -114,7 +114,9 @@ def test_point_cloud_files_are_never_unpickled(tmp_path):
              frame_json=np.array([_Touch(marker)], dtype=object))
     pickle.loads(pickle.dumps(_Touch(tmp_path / "control")))  # the payload does work...
     assert (tmp_path / "control").exists()
-    with pytest.raises(ValueError, match="allow_pickle"):
+    from lidarsim_core.base.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="allow_pickle"):
         read_npz(path)
     assert not marker.exists()  # ...but lidarsim never ran it
 

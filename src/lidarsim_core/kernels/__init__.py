@@ -36,7 +36,6 @@ import functools
 import os
 
 from ..base.errors import ConfigError
-from ..base.optional import require
 
 #: Values accepted by ``LIDARSIM_KERNELS``.
 MODES = ("auto", "numba", "numpy")
@@ -68,9 +67,10 @@ def enabled() -> bool:
         return False
     if numba_importable():
         return True
-    if selected == "numba":  # asked for and missing: say which extra installs it
-        require("numba", extra="fast", what="LIDARSIM_KERNELS=numba", error=ConfigError,
-                source="environment", field="LIDARSIM_KERNELS")
+    if selected == "numba":
+        raise ConfigError("LIDARSIM_KERNELS=numba but numba is not installed; "
+                          "pip install 'lidarsim-core[fast]'", source="environment",
+                          field="LIDARSIM_KERNELS")
     return False
 
 

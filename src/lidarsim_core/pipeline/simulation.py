@@ -33,6 +33,7 @@ every hit inside the range gate, one per pulse: the seed paper's model, to the b
 
 from __future__ import annotations
 
+from dataclasses import fields
 from pathlib import Path
 from typing import Any, Iterator, Sequence
 
@@ -76,6 +77,8 @@ DEFAULT_NOISE_CHAIN = ("angular", "range")
 PIECE_RAYS = 65536
 #: Part label of false alarms (appended to the scene's parts when a model makes them).
 FALSE_ALARM_PART = "noise/false_alarm"
+#: The context's public fields, also readable and settable as the simulation's attributes.
+_CONTEXT_FIELDS = frozenset(f.name for f in fields(RunContext) if not f.name.startswith("_"))
 
 
 class Simulation:
@@ -136,12 +139,18 @@ class Simulation:
 
     def __getattr__(self, name: str) -> Any:
         # the context's fields read as the simulation's own (sim.sensor, sim.targets, ...)
-        if name != "context" and not name.startswith("__"):
-            try:
-                return getattr(self.__dict__["context"], name)
-            except (KeyError, AttributeError):
-                pass
+        context = self.__dict__.get("context")
+        if context is not None and (name in _CONTEXT_FIELDS or name == "rays_per_pulse"):
+            return getattr(context, name)
         raise AttributeError(f"'Simulation' object has no attribute {name!r}")
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        # ...and are set on the context, which the pieces of the run read
+        context = self.__dict__.get("context")
+        if context is not None and name in _CONTEXT_FIELDS:
+            setattr(context, name, value)
+        else:
+            super().__setattr__(name, value)
 
     # ---- running ------------------------------------------------------------------------
     def frame_rays(self, frame: int) -> tuple[int, int]:
