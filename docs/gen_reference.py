@@ -162,7 +162,7 @@ def component_sections(kind: str, level: str = "###") -> str:
 # ---- pages ------------------------------------------------------------------------------------
 def scenario_reference() -> str:
     """The scenario reference page."""
-    from lidarsim_core.scenario.pose import PoseConfig
+    from lidarsim_core.scenario import PoseConfig
     from lidarsim_core.scenario import Scenario
 
     parts = [

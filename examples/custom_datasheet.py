@@ -22,7 +22,7 @@ import yaml
 
 from lidarsim_core.scenario.datasheet import load_datasheet
 from lidarsim_core.base.errors import ConfigError
-from lidarsim_core.scenario.load import scenario_from_dict
+from lidarsim_core.scenario import scenario_from_dict
 from lidarsim_core.pipeline import simulate
 
 OUT = Path(sys.argv[1] if len(sys.argv) > 1 else "custom-sensor-out")

@@ -34,7 +34,7 @@ print(f"   {sheet.fov_type} FOV {sheet.fov_h_deg:g}°, {sheet.point_rate_hz:,.0f
 # [end:sensor]
 
 # [start:pattern]
-from lidarsim_core.plugins.resolve import pattern_for
+from lidarsim_core.plugins import pattern_for
 from lidarsim_core.patterns.geometry import off_axis_angle
 
 pattern = pattern_for(sheet)                      # the datasheet's scan_pattern: rose, B = 4
@@ -51,8 +51,8 @@ print(f"2. pattern: {len(rays):,} rays in 3 turns of {1e3 * turn_s:.2f} ms; "
 # [end:pattern]
 
 # [start:scenario]
-from lidarsim_core.scenario.demo import demo_target_pose
-from lidarsim_core.scenario.load import scenario_from_dict
+from lidarsim_core.scenario import demo_target_pose
+from lidarsim_core.scenario import scenario_from_dict
 
 scenario = scenario_from_dict({
     "seed": 2024,

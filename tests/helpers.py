@@ -48,6 +48,6 @@ def scenario(target_mesh: dict[str, Any], target_pose: dict[str, Any] | None = N
         "noise": list(noise) if noise is not None else None,  # None: datasheet default
         **extra,
     }
-    from lidarsim_core.scenario.load import scenario_from_dict
+    from lidarsim_core.scenario import scenario_from_dict
 
     return scenario_from_dict(data)

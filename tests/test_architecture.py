@@ -142,6 +142,8 @@ def test_every_moved_module_imports_under_its_old_path_with_a_warning():
         with pytest.warns(DeprecationWarning, match=f"lidarsim_core.{new}"):
             module = importlib.import_module(f"lidarsim_core.{old}")
         target = importlib.import_module(f"lidarsim_core.{new}")
+        # the moved module keeps its own name for pickles, spawned workers, relative imports
+        assert target.__spec__.name == f"lidarsim_core.{new}"
         for name in _compat.SPLIT.get(old, {}):
             home = importlib.import_module(f"lidarsim_core.{_compat.SPLIT[old][name]}")
             assert getattr(module, name) is getattr(home, name), (old, name)

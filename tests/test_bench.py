@@ -49,7 +49,7 @@ def test_close_scene_hits_more_than_the_demo():
 
 def test_scan_rays_are_the_rays_the_pipeline_casts():
     from lidarsim_core.pipeline import Simulation
-    from lidarsim_core.scenario.demo import demo_scenario
+    from lidarsim_core.scenario import demo_scenario
 
     sim = Simulation(demo_scenario(duration_s=0.01, detail="coarse", backend="numpy"))
     origins, directions = bench.scan_rays(sim)
@@ -126,7 +126,7 @@ def test_suite_scene_figures_are_consistent():
 def test_suite_casts_every_sub_ray_and_both_targets():
     from lidarsim_core.bench import suite as bench_suite
     from lidarsim_core.pipeline import Simulation
-    from lidarsim_core.scenario.load import scenario_from_dict
+    from lidarsim_core.scenario import scenario_from_dict
 
     def sim(name):
         data = bench_suite.SUITE[name][1](0.01)

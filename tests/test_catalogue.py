@@ -18,7 +18,7 @@ from lidarsim_core.cli import app
 from lidarsim_core.pipeline import Simulation
 from lidarsim_core.plugins import get_registry
 from lidarsim_core.plugins.resolve import get_sensor, pattern_for
-from lidarsim_core.scenario.demo import demo_scenario
+from lidarsim_core.scenario import demo_scenario
 
 REQUIRED = {
     "livox-mid70": "risley", "livox-mid70-rose": "rose", "livox-mid40": "risley",

@@ -102,7 +102,7 @@ def test_help_shows_no_type_after_plain_flags():
 def test_simulate_progress_counts_every_pulse():
     from lidarsim_core.cli.simulate import _counted_chunks
     from lidarsim_core.pipeline import Simulation
-    from lidarsim_core.scenario.load import scenario_from_dict
+    from lidarsim_core.scenario import scenario_from_dict
 
     sim = Simulation(scenario_from_dict({**SCENARIO, "chunk_rays": 1000}))
 
@@ -195,7 +195,7 @@ def test_output_folder_that_cannot_be_created_is_explained(scene):
 def test_cloud_save_never_replaces_without_overwrite(tmp_path):
     from lidarsim_core.base.errors import OutputError
     from lidarsim_core.pipeline import simulate
-    from lidarsim_core.scenario.load import scenario_from_dict
+    from lidarsim_core.scenario import scenario_from_dict
 
     cloud = simulate(scenario_from_dict(SCENARIO))
     path = cloud.save(tmp_path / "new" / "c.npz")  # the folder is created
@@ -223,7 +223,7 @@ def test_top_level_namespace_is_the_public_api():
 
 def test_cloud_and_frame_reprs_are_one_line():
     from lidarsim_core.pipeline import simulate
-    from lidarsim_core.scenario.load import scenario_from_dict
+    from lidarsim_core.scenario import scenario_from_dict
 
     cloud = simulate(scenario_from_dict(SCENARIO))
     text = repr(cloud)

@@ -14,8 +14,8 @@ import pytest
 from lidarsim_core.noise.base import NoiseModel
 from lidarsim_core.pipeline import Simulation
 from lidarsim_core.pipeline.cull import PulseCuller, cull_tree
-from lidarsim_core.scenario.demo import demo_scenario
-from lidarsim_core.scenario.load import load_scenario, scenario_from_dict
+from lidarsim_core.scenario import demo_scenario
+from lidarsim_core.scenario import load_scenario, scenario_from_dict
 
 pytest.importorskip("numba", reason="culling runs with the compiled kernels (extra 'fast')")
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "scenarios"
@@ -136,7 +136,7 @@ def test_culling_drops_most_pulses_that_miss():
     sim = Simulation(demo_scenario(duration_s=0.2, detail="medium"))
     k0, k1 = sim.frame_rays(0)
     batch = sim.pattern.rays_for_indices(np.arange(k0, k1))
-    kept = sim.culler.keep(sim, batch, 0.0)
+    kept = sim.culler.keep(sim.context, batch, 0.0)
     hits = len(sim.run_frame(0))
     # 11 % of the pulses hit Envisat; the culler keeps them all and not many more
     assert hits <= len(kept) < 0.35 * len(batch)

@@ -143,7 +143,7 @@ def test_any_frame_regenerates_bit_for_bit_from_the_copy_even_when_moved(tmp_pat
     import trimesh
 
     from lidarsim_core.pipeline import Simulation
-    from lidarsim_core.scenario.load import load_scenario
+    from lidarsim_core.scenario import load_scenario
 
     meshes = tmp_path / "meshes"
     meshes.mkdir()

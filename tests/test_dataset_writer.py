@@ -11,7 +11,7 @@ import pytest
 import lidarsim_core.dataset.executors as executors
 from lidarsim_core.dataset import generate
 from lidarsim_core.dataset.generate import generate_dataset
-from lidarsim_core.scenario.demo import demo_scenario
+from lidarsim_core.scenario import demo_scenario
 
 
 def _files(root: Path) -> dict[str, bytes]:
@@ -22,7 +22,7 @@ def _files(root: Path) -> dict[str, bytes]:
 def test_overlapped_writing_gives_the_same_bytes_as_writing_in_line(tmp_path, monkeypatch):
     data = demo_scenario(duration_s=0.01, detail="coarse").model_dump(mode="json")
     data["scan"] = {"duration_s": 0.01, "frames": 5, "frame_period_s": 0.05}
-    from lidarsim_core.scenario.load import scenario_from_dict
+    from lidarsim_core.scenario import scenario_from_dict
 
     scenario = scenario_from_dict(data, source="<test>")
     generate_dataset(scenario, tmp_path / "overlap")

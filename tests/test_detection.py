@@ -36,7 +36,7 @@ def _plate_scenario(range_m, rho, *, angle_deg=0.0, detection=None, sheet=None, 
     data = sc.model_dump()
     data["sensor"]["detection"] = {"range_max_m": 1000.0} if detection is None else detection
     data["targets"][0]["materials"] = {"plate": {"diffuse_reflectivity": rho}}
-    from lidarsim_core.scenario.load import scenario_from_dict
+    from lidarsim_core.scenario import scenario_from_dict
 
     return scenario_from_dict(data)
 
@@ -94,7 +94,7 @@ def test_detection_and_intensity_fall_with_incidence_as_the_formula(material):
                              detection={"keep_undetected": True, "range_max_m": 1000.0})
         data = sc.model_dump()
         data["targets"][0]["materials"] = {"plate": material}
-        from lidarsim_core.scenario.load import scenario_from_dict
+        from lidarsim_core.scenario import scenario_from_dict
 
         cloud = Simulation(scenario_from_dict(data)).run_frame(0)
         assert len(cloud) == cloud.frame.rays_emitted  # every pulse hits the plate
@@ -153,7 +153,7 @@ def test_strong_returns_are_all_detected_with_unchanged_noise():
     with_det = Simulation(_plate_scenario(10.0, 0.8, detection={}, noise=noise)).run_frame(0)
     data = _plate_scenario(10.0, 0.8, noise=noise).model_dump()
     data["sensor"]["detection"] = None
-    from lidarsim_core.scenario.load import scenario_from_dict
+    from lidarsim_core.scenario import scenario_from_dict
 
     without = Simulation(scenario_from_dict(data)).run_frame(0)
     assert len(with_det) == len(without) == 2000
@@ -199,7 +199,7 @@ def test_catalogue_mid70_calibrates_within_five_percent():
 def test_unknown_detection_key_is_rejected():
     data = _plate_scenario(50.0, 0.2).model_dump()
     data["sensor"]["detection"] = {"treshold": 3}
-    from lidarsim_core.scenario.load import scenario_from_dict
+    from lidarsim_core.scenario import scenario_from_dict
 
     with pytest.raises(ConfigError) as err:
         scenario_from_dict(data)
@@ -209,7 +209,7 @@ def test_unknown_detection_key_is_rejected():
 def test_config_hash_changes_only_when_realism_is_set():
     plain = scenario(PLATE, {"position_m": [50, 0, 0]})
     data = plain.model_dump()
-    from lidarsim_core.scenario.load import scenario_from_dict
+    from lidarsim_core.scenario import scenario_from_dict
 
     assert scenario_from_dict(data).config_hash() == plain.config_hash()
     data["sensor"]["detection"] = {}

@@ -13,7 +13,7 @@ from lidarsim_core.base.errors import ConfigError
 from lidarsim_core.instrument.beam import SubRays
 from lidarsim_core.instrument.returns import select_returns
 from lidarsim_core.pipeline import Simulation
-from lidarsim_core.scenario.load import scenario_from_dict
+from lidarsim_core.scenario import scenario_from_dict
 
 FRONT_M = 30.0
 #: Vertical footprint half-height at 30 m reached by the outermost of 32 sub-rays (0.28° 1/e²

@@ -136,7 +136,7 @@ def _table_rows_ok(markdown: str) -> None:
 def test_scenario_reference_has_every_field_and_component(gen):
     from lidarsim_core.plugins import get_registry
     from lidarsim_core.scenario import Scenario
-    from lidarsim_core.scenario.pose import PoseConfig
+    from lidarsim_core.scenario import PoseConfig
 
     page = gen["scenario_reference"]()
     for path in _model_paths(Scenario):
@@ -212,7 +212,7 @@ def _registry_with(code: str, name: str):
 def _scenario(**changes):
     from helpers import datasheet
 
-    from lidarsim_core.scenario.load import scenario_from_dict
+    from lidarsim_core.scenario import scenario_from_dict
 
     data = {"seed": 3, "sensor": {"datasheet": datasheet()},
             "targets": [{"name": "t", "mesh": {"model": "plate", "options": {"size_m": [20, 20]}},
@@ -291,7 +291,7 @@ def test_plugin_guide_trajectory_example_works():
 def test_vendor_guide_datasheet_and_scenario_work(tmp_path):
     from lidarsim_core.pipeline import Simulation
     from lidarsim_core.scenario.datasheet import load_datasheet
-    from lidarsim_core.scenario.load import load_scenario
+    from lidarsim_core.scenario import load_scenario
 
     blocks = re.findall(r"```yaml\n(.*?)```", (DOCS / "vendor_guide.md").read_text(), re.S)
     (tmp_path / "my-lidar.yaml").write_text(blocks[0])

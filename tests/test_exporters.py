@@ -29,7 +29,7 @@ FORMATS = ["ply", "npz", "pcd", "las", "laz", "csv"]
 def cloud() -> PointCloud:
     """A noisy Envisat scan: several parts, every column populated."""
     from lidarsim_core.pipeline import Simulation
-    from lidarsim_core.scenario.demo import demo_scenario
+    from lidarsim_core.scenario import demo_scenario
 
     scenario = demo_scenario(duration_s=0.05, backend="numpy", detail="coarse", seed=3)
     result = Simulation(scenario).run_frame(0)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from lidarsim_core.pipeline import Simulation
-from lidarsim_core.scenario.load import scenario_from_dict
+from lidarsim_core.scenario import scenario_from_dict
 
 #: ball-vns-flash at 30 flashes/s, with a smaller array than its 256 × 256 to keep this fast
 OPTIONS = {"rows": 32, "columns": 32, "frame_rate_hz": 30.0}

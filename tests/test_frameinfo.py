@@ -12,7 +12,7 @@ from test_posing import TRAJECTORIES, _trajectory
 from lidarsim_core.bench.suite import SUITE
 from lidarsim_core.pipeline import Simulation
 from lidarsim_core.records.groundtruth import frame_record, frame_records
-from lidarsim_core.scenario.load import scenario_from_dict
+from lidarsim_core.scenario import scenario_from_dict
 
 
 def _one_frame(sim: Simulation, frame: int) -> dict:

@@ -141,7 +141,7 @@ def test_coverage_cells_are_computed_like_the_grid():
     sensor (an independent count: the grid's own arrays)."""
     from lidarsim_core.patterns.fov import _Grid, coverage_cells
     from lidarsim_core.plugins import get_registry
-    from lidarsim_core.plugins.resolve import pattern_for
+    from lidarsim_core.plugins import pattern_for
 
     for entry in get_registry().iter("sensor"):
         pattern = pattern_for(entry.obj)

@@ -164,7 +164,7 @@ def test_cli_reports_an_interrupt_surfacing_through_a_kernel_as_the_interrupt(
 def test_simulation_reraises_an_interrupt_surfacing_through_a_kernel(monkeypatch):
     from lidarsim_core.base.signals import Terminated
     from lidarsim_core.pipeline import Simulation
-    from lidarsim_core.scenario.demo import demo_scenario
+    from lidarsim_core.scenario import demo_scenario
 
     sim = Simulation(demo_scenario(duration_s=0.01, detail="coarse", backend="numpy"))
     term = Terminated()

@@ -11,7 +11,7 @@ from lidarsim_core import kernels
 from lidarsim_core.base.errors import ConfigError
 from lidarsim_core.noise import rng
 from lidarsim_core.pipeline import Simulation
-from lidarsim_core.scenario.demo import demo_scenario
+from lidarsim_core.scenario import demo_scenario
 
 numba = pytest.importorskip("numba", reason="the compiled kernels need numba (extra 'fast')")
 

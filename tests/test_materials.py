@@ -29,7 +29,7 @@ def _tilted(angle_deg: float) -> dict:
 
 def _with_materials(sc, materials: dict):
     """``sc`` with its first target's ``materials`` set."""
-    from lidarsim_core.scenario.load import scenario_from_dict
+    from lidarsim_core.scenario import scenario_from_dict
 
     data = sc.model_dump()
     data["targets"][0]["materials"] = materials
@@ -82,7 +82,7 @@ def test_every_library_material_states_its_source():
 def test_envisat_parts_have_default_materials_and_intensity_follows_them():
     from lidarsim_core.models.builtin import ENVISAT_MATERIALS
     from lidarsim_core.models.envisat import ENVISAT_PARTS
-    from lidarsim_core.scenario.demo import demo_scenario
+    from lidarsim_core.scenario import demo_scenario
 
     assert set(ENVISAT_MATERIALS) == set(ENVISAT_PARTS)
     assert set(ENVISAT_MATERIALS.values()) <= set(MATERIAL_LIBRARY)
@@ -116,7 +116,7 @@ def test_parts_without_material_use_the_default():
 
 
 def test_scenario_materials_by_name_inline_star_and_own_library():
-    from lidarsim_core.scenario.load import scenario_from_dict
+    from lidarsim_core.scenario import scenario_from_dict
 
     base = scenario({"model": "envisat", "options": {"detail": "coarse"}},
                     {"position_m": [30, -8, 0]}).model_dump()
@@ -143,7 +143,7 @@ def test_bad_materials_name_the_field(materials, own, field, words):
     sc = scenario(PLATE, _tilted(0), materials=own)
     data = sc.model_dump()
     data["targets"][0]["materials"] = materials
-    from lidarsim_core.scenario.load import scenario_from_dict
+    from lidarsim_core.scenario import scenario_from_dict
 
     with pytest.raises(ConfigError) as err:
         Simulation(scenario_from_dict(data))

@@ -20,7 +20,7 @@ import yaml
 from scipy.spatial.transform import Rotation
 
 import lidarsim_core as ls
-from lidarsim_core.scenario.demo import demo_target_pose
+from lidarsim_core.scenario import demo_target_pose
 
 needs_open3d = pytest.mark.skipif(importlib.util.find_spec("open3d") is None,
                                   reason="open3d is not installed (extra 'test')")

@@ -106,7 +106,7 @@ def test_ply_per_face_labels_give_named_parts(tmp_path):
 
 def test_simulated_points_carry_the_obj_parts(tmp_path):
     from lidarsim_core.pipeline import simulate
-    from lidarsim_core.scenario.load import scenario_from_dict
+    from lidarsim_core.scenario import scenario_from_dict
 
     obj = _obj(tmp_path / "sat.obj", "o")
     scenario = scenario_from_dict({

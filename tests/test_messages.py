@@ -25,7 +25,7 @@ BASE = {
 
 def _message(data: dict) -> str:
     from lidarsim_core.base.errors import ConfigError
-    from lidarsim_core.scenario.load import scenario_from_dict
+    from lidarsim_core.scenario import scenario_from_dict
 
     with pytest.raises(ConfigError) as info:
         scenario_from_dict(data, source="scene.yaml")
@@ -67,7 +67,7 @@ def test_euler_angles_of_the_wrong_length_say_how_many_are_needed(values, got):
 def test_component_option_typo_suggests_the_option():
     from lidarsim_core.base.errors import ConfigError
     from lidarsim_core.pipeline import Simulation
-    from lidarsim_core.scenario.load import scenario_from_dict
+    from lidarsim_core.scenario import scenario_from_dict
 
     data = copy.deepcopy(BASE)
     data["targets"][0]["mesh"]["options"] = {"detial": "coarse"}
@@ -97,7 +97,7 @@ def _scene_with_mesh(tmp_path: Path, extents, scale: float | None = None) -> Pat
 def test_a_mesh_in_millimetres_warns_and_suggests_scale(tmp_path):
     from lidarsim_core.pipeline import Simulation
     from lidarsim_core.pipeline.units import UnitsWarning
-    from lidarsim_core.scenario.load import load_scenario
+    from lidarsim_core.scenario import load_scenario
 
     scene = _scene_with_mesh(tmp_path, (8000.0, 3000.0, 3000.0))  # an 8 m bus, in mm
     with pytest.warns(UnitsWarning) as record:
@@ -117,7 +117,7 @@ def test_a_mesh_in_millimetres_warns_and_suggests_scale(tmp_path):
 
 def test_the_same_mesh_scaled_to_metres_gives_no_warning(tmp_path):
     from lidarsim_core.pipeline import Simulation
-    from lidarsim_core.scenario.load import load_scenario
+    from lidarsim_core.scenario import load_scenario
 
     scene = _scene_with_mesh(tmp_path, (8000.0, 3000.0, 3000.0), scale=0.001)
     with warnings.catch_warnings():
@@ -129,7 +129,7 @@ def test_the_same_mesh_scaled_to_metres_gives_no_warning(tmp_path):
 def test_sensor_inside_a_file_mesh_warns_even_when_its_size_is_plausible(tmp_path):
     from lidarsim_core.pipeline import Simulation
     from lidarsim_core.pipeline.units import UnitsWarning
-    from lidarsim_core.scenario.load import load_scenario
+    from lidarsim_core.scenario import load_scenario
 
     scene = _scene_with_mesh(tmp_path, (100.0, 100.0, 100.0))  # 100 m: the sensor is inside
     with pytest.warns(UnitsWarning, match="sensor is inside the bounding box of target 'sat'"):

@@ -9,7 +9,7 @@ from helpers import datasheet
 from scipy.spatial.transform import Rotation
 
 from lidarsim_core.pipeline import Simulation
-from lidarsim_core.scenario.load import scenario_from_dict
+from lidarsim_core.scenario import scenario_from_dict
 
 BOX = np.array([2.0, 3.0, 1.5])  # box extents (m): its surface is max_i |x_i| / (BOX_i/2) = 1
 SPIN_DEG_S = 90.0                # a known, fast spin so the distortion is large

@@ -12,7 +12,7 @@ from helpers import datasheet
 
 from lidarsim_core.base.errors import ConfigError
 from lidarsim_core.pipeline import Simulation
-from lidarsim_core.scenario.load import scenario_from_dict
+from lidarsim_core.scenario import scenario_from_dict
 
 MIRROR_AT = np.array([10.0, 0.0, 0.0])
 WALL_Y = -6.0
@@ -147,7 +147,7 @@ def test_ghosts_are_byte_identical_across_chunks_and_threads(sub_rays, monkeypat
 def test_light_in_orbit_example_shows_every_effect():
     from pathlib import Path
 
-    from lidarsim_core.scenario.load import load_scenario
+    from lidarsim_core.scenario import load_scenario
 
     path = Path(__file__).resolve().parents[1] / "examples" / "scenarios" / "light_in_orbit.yaml"
     sim = Simulation(load_scenario(path))

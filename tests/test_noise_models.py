@@ -12,7 +12,7 @@ from helpers import scenario
 
 from lidarsim_core.noise.base import perpendicular_basis
 from lidarsim_core.pipeline import Simulation
-from lidarsim_core.scenario.load import scenario_from_dict
+from lidarsim_core.scenario import scenario_from_dict
 
 N_RAYS = 10000  # 1 s of the helper's 10 kHz scanner
 

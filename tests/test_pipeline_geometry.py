@@ -118,7 +118,7 @@ def test_misses_produce_no_points_and_ranges_are_gated():
 @pytest.mark.skipif(not __import__("importlib").util.find_spec("embreex"),
                     reason="embreex not installed")
 def test_backends_agree_on_the_envisat_demo_scene():
-    from lidarsim_core.scenario.demo import demo_scenario
+    from lidarsim_core.scenario import demo_scenario
 
     clouds = {b: ls.simulate(demo_scenario(duration_s=0.3, noise=False, backend=b))
               for b in ("numpy", "embree")}

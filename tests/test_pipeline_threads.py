@@ -10,8 +10,8 @@ import pytest
 from lidarsim_core.pipeline import simulation as pipeline_module
 from lidarsim_core.backends.numpy_backend import NumpyBackend
 from lidarsim_core.pipeline import Simulation
-from lidarsim_core.scenario.demo import demo_scenario
-from lidarsim_core.scenario.load import scenario_from_dict
+from lidarsim_core.scenario import demo_scenario
+from lidarsim_core.scenario import scenario_from_dict
 
 
 def _tumbling(backend: str):

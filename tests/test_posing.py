@@ -11,7 +11,7 @@ import pytest
 from lidarsim_core.geometry.posing import PoseMatrices, RotationChain
 from lidarsim_core.pipeline import Simulation
 from lidarsim_core.plugins import get_registry
-from lidarsim_core.scenario.load import load_scenario
+from lidarsim_core.scenario import load_scenario
 from lidarsim_core.trajectories.base import Trajectory
 from lidarsim_core.trajectories.matrices import has_fast_path, pose_matrices
 from lidarsim_core.trajectories.tumbling import TumblingTrajectory
@@ -159,7 +159,7 @@ def test_poses_are_computed_once_per_piece_and_the_frame_matches_the_scipy_path(
 @pytest.mark.parametrize("scene", ["tumbling-risley", "flyaround-50m", "vlp16-circling-15m"])
 def test_per_ray_poses_give_the_same_bytes_for_any_chunk_size_and_threads(scene, monkeypatch):
     from lidarsim_core.bench.suite import SUITE
-    from lidarsim_core.scenario.load import scenario_from_dict
+    from lidarsim_core.scenario import scenario_from_dict
 
     scenario = scenario_from_dict(SUITE[scene][1](0.03), source="<test>")
     clouds = []

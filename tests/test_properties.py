@@ -23,7 +23,7 @@ from scipy.spatial.transform import Rotation
 
 from lidarsim_core.geometry.frames import rotate, to_body
 from lidarsim_core.geometry.poses import Poses
-from lidarsim_core.scenario.pose import PoseConfig
+from lidarsim_core.scenario import PoseConfig
 
 FAST = settings(max_examples=100, deadline=None,
                 suppress_health_check=[HealthCheck.too_slow])

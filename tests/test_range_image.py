@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 import lidarsim_core as ls
-from lidarsim_core.scenario.demo import demo_target_pose
-from lidarsim_core.scenario.load import scenario_from_dict
+from lidarsim_core.scenario import demo_target_pose
+from lidarsim_core.scenario import scenario_from_dict
 
 
 def _simulate(sensor: str, duration_s: float) -> tuple[ls.Simulation, ls.PointCloud]:

@@ -11,7 +11,7 @@ from helpers import datasheet, scenario
 
 from lidarsim_core.base.errors import ConfigError
 from lidarsim_core.pipeline import Simulation
-from lidarsim_core.scenario.load import scenario_from_dict
+from lidarsim_core.scenario import scenario_from_dict
 
 RETRO = {"diffuse_reflectivity": 0.1, "retro_reflectivity": 1000.0, "retro_acceptance_deg": 30}
 

@@ -23,7 +23,7 @@ from lidarsim_core.patterns.geometry import (
     directions_from_off_axis,
 )
 from lidarsim_core.pipeline import simulate
-from lidarsim_core.plugins.resolve import pattern_for
+from lidarsim_core.plugins import pattern_for
 from lidarsim_core.report.colouring import point_colours
 from lidarsim_core.report.run import load_run
 from lidarsim_core.report.stats import (

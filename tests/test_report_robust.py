@@ -19,7 +19,7 @@ def _box_run(directory: Path, *, fmt: str = "npz", duration: float = 0.2) -> Pat
     import trimesh
 
     from lidarsim_core.pipeline import simulate
-    from lidarsim_core.scenario.load import load_scenario
+    from lidarsim_core.scenario import load_scenario
 
     directory.mkdir(parents=True, exist_ok=True)
     bus = trimesh.creation.box(extents=(2.0, 2.0, 2.0))
@@ -111,7 +111,7 @@ def test_report_reads_runs_in_other_formats(tmp_path, fmt):
 def test_the_most_precise_copy_of_a_frame_is_used(tmp_path):
     from lidarsim_core.pipeline import simulate
     from lidarsim_core.report.run import load_run
-    from lidarsim_core.scenario.load import load_scenario
+    from lidarsim_core.scenario import load_scenario
 
     directory = _box_run(tmp_path / "run", fmt="pcd", duration=0.05)
     simulate(load_scenario(directory / "scenario.yaml")).save(directory / "cloud.npz")

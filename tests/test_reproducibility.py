@@ -74,7 +74,7 @@ def test_chunk_size_does_not_change_a_byte(scene, reference, tmp_path, chunk_ray
 def test_one_ray_pieces_of_a_moving_target_give_the_same_bits():
     """A piece of a single ray sees a moving target through a one-pose transform; it must
     give the bits a longer piece gives (it used to differ in the last bit)."""
-    from lidarsim_core.scenario.load import scenario_from_dict
+    from lidarsim_core.scenario import scenario_from_dict
 
     data = {**SCENARIO, "scan": {"duration_s": 0.004}, "targets": [
         {"name": "tumbler", "mesh": {"model": "box", "options": {"extents_m": [8, 8, 8]}},

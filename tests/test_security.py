@@ -39,7 +39,7 @@ def _readers():
     from lidarsim_core.base.config_io import read_config_file
     from lidarsim_core.dataset.config import load_plan
     from lidarsim_core.scenario.datasheet import load_datasheet
-    from lidarsim_core.scenario.load import load_scenario
+    from lidarsim_core.scenario import load_scenario
     from lidarsim_core.trajectories.keyframes import load_keyframe_file
 
     return {"config": read_config_file, "scenario": load_scenario,

@@ -23,7 +23,7 @@ from lidarsim_core.pipeline import Simulation
 from lidarsim_core.pipeline.simulation import sequence_frame_infos
 from lidarsim_core.records.groundtruth import pose_from_record
 from lidarsim_core.scenario import ScanConfig
-from lidarsim_core.scenario.load import load_scenario, scenario_from_dict
+from lidarsim_core.scenario import load_scenario, scenario_from_dict
 from lidarsim_core.trajectories.orbit import mean_motion_from_altitude
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "scenarios"

@@ -14,7 +14,7 @@ from scipy.stats import binomtest
 from lidarsim_core.base.errors import ConfigError
 from lidarsim_core.pipeline import Simulation
 from lidarsim_core.pipeline.stages.sun import solar_spectral_irradiance
-from lidarsim_core.scenario.load import scenario_from_dict
+from lidarsim_core.scenario import scenario_from_dict
 
 RHO = 0.8
 SUN = np.array([-1.0, 0.0, 1.0]) / math.sqrt(2.0)  # up and behind the sensor: lights the plate

@@ -9,7 +9,7 @@ from scipy.spatial.transform import Rotation
 
 from lidarsim_core.base.errors import ConfigError
 from lidarsim_core.pipeline import Simulation
-from lidarsim_core.scenario.load import load_scenario
+from lidarsim_core.scenario import load_scenario
 from lidarsim_core.trajectories.keyframes import KeyframeTrajectory
 
 TIMES = np.array([0.0, 1.0, 2.5, 4.0, 6.0])

@@ -178,6 +178,7 @@ class _Moved(types.ModuleType):
 class _Loader(importlib.abc.Loader):
     def __init__(self, old: str) -> None:
         self.old = old
+        self.spec: Any = None
 
     def create_module(self, spec: importlib.machinery.ModuleSpec) -> types.ModuleType:
         new = MOVED[self.old]
@@ -185,10 +186,16 @@ class _Loader(importlib.abc.Loader):
                       "(docs/architecture.md)", DeprecationWarning, stacklevel=2)
         if self.old in SPLIT:
             return _Moved(self.old)
-        return importlib.import_module(f"{PACKAGE}.{new}")
+        module = importlib.import_module(f"{PACKAGE}.{new}")
+        self.spec = module.__spec__
+        return module
 
     def exec_module(self, module: types.ModuleType) -> None:
         """Nothing to run: the module is the moved one (or looks its names up there)."""
+        if self.spec is not None:
+            # the import system gave the moved module the old name's spec: give its own back
+            # (its relative imports, pickles and spawned workers use it)
+            module.__spec__ = self.spec
 
 
 class _Finder(importlib.abc.MetaPathFinder):

@@ -306,7 +306,7 @@ def _api_coverage(argv: list[str]) -> Any:
 def _api_poses(argv: list[str]) -> Any:
     from lidarsim_core.io.groundtruth import write_ground_truth
     from lidarsim_core.pipeline.simulation import sequence_frame_infos
-    from lidarsim_core.scenario.load import load_scenario
+    from lidarsim_core.scenario import load_scenario
 
     (path,), opts = _options(argv)
     infos = sequence_frame_infos(load_scenario(path))

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from lidarsim_core.scenario.demo import demo_scenario
+from lidarsim_core.scenario import demo_scenario
 from lidarsim_core.evaluate import FrameInput, PoseEstimate, TargetModelData, pose_errors
 from lidarsim_core.pipeline import Simulation
 from lidarsim_example_estimator import plugin

@@ -16,13 +16,8 @@ import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
 
 from .errors import ConfigError
-
-if TYPE_CHECKING:
-    pass
-
 
 #: Where a value read from an environment variable comes from, in error messages.
 ENVIRONMENT = "environment"

@@ -5,10 +5,7 @@ refused with messages of their own.
 from __future__ import annotations
 
 from contextlib import contextmanager
-from typing import TYPE_CHECKING, Iterator
-
-if TYPE_CHECKING:
-    pass
+from typing import Iterator
 
 
 @contextmanager

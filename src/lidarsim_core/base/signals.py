@@ -17,11 +17,7 @@ from __future__ import annotations
 import signal
 import threading
 from contextlib import contextmanager
-from typing import TYPE_CHECKING, Any, Iterator
-
-if TYPE_CHECKING:
-    pass
-
+from typing import Any, Iterator
 
 #: Exit status of the CLI after SIGTERM (128 + signal number, the shell convention).
 SIGTERM_EXIT_CODE = 128 + int(signal.SIGTERM)

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import asdict, dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 
@@ -33,9 +33,6 @@ from .geometry import (
     directions_from_off_axis,
     off_axis_angle,
 )
-
-if TYPE_CHECKING:
-    pass
 
 #: Rays generated per step when scanning a pattern (bounds memory).
 CHUNK_RAYS = 1 << 20

@@ -50,7 +50,7 @@ from __future__ import annotations
 import math
 import threading
 from abc import abstractmethod
-from typing import TYPE_CHECKING, Any, Literal
+from typing import Any, Literal
 
 import numpy as np
 from pydantic import ConfigDict, Field, field_validator, model_validator
@@ -63,9 +63,6 @@ from ..hookspecs import hookimpl
 from ..scenario.pose import PoseConfig
 from .base import Trajectory
 from .orbit import OrbitConfig, lvlh_from_inertial
-
-if TYPE_CHECKING:
-    pass
 
 Vec3 = tuple[float, float, float]
 
