@@ -39,3 +39,15 @@ def test_sun_sweep_follows_the_receiver_model(tmp_path):
     p = sweep["predicted"][2]
     assert abs(sweep["false_alarms"][2] - p) < 5 * math.sqrt(p * (1 - p) / n)
     assert sweep["returns"][0] < sweep["returns"][1]  # blinded around the Sun
+
+
+def test_earth_sweep_follows_the_receiver_model(tmp_path):
+    """As the terminator crosses the field of view, the false alarms per pulse follow the mean
+    of P(B) − P(0) over the pulses, B from the ray-sphere geometry of each."""
+    sweep = light.earth_sweep(np.array([84.0, 90.0, 97.0]), duration_s=0.05)
+    assert sweep["dayside"][0] == 1.0 and 0.3 < sweep["dayside"][1] < 0.7
+    assert sweep["dayside"][2] == 0.0 and sweep["false_alarms"][2] == 0.0
+    n = 5000  # pulses in 0.05 s of the MID-70
+    for rate, p in zip(sweep["false_alarms"][:2], sweep["predicted"][:2]):
+        assert p > 0.003
+        assert abs(rate - p) < 5 * math.sqrt(p * (1 - p) / n)

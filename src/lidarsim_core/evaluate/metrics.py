@@ -21,12 +21,15 @@ declared symmetries the true pose is first replaced by its closest equivalent
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from .symmetry import SymmetryGroup, closest_equivalent
+
+if TYPE_CHECKING:
+    from .scores import TargetScorer
 
 #: Metric columns, in file order.
 METRICS: tuple[str, ...] = ("translation_error_m", "rotation_error_deg", "e_t", "e_q_rad",
@@ -50,8 +53,10 @@ def rotation_angle_rad(q_a: Any, q_b: Any) -> float:
 
 
 def pose_errors(q_est: Any, t_est: Any, q_gt: Any, t_gt: Any,
-                group: SymmetryGroup | None = None) -> dict[str, float]:
-    """The metrics of :data:`METRICS` for one frame (see the module docstring).
+                group: SymmetryGroup | None = None,
+                scorer: "TargetScorer | None" = None) -> dict[str, float]:
+    """The metrics of :data:`METRICS` for one frame (see the module docstring), and with a
+    ``scorer`` the scores of :data:`~lidarsim_core.evaluate.scores.SCORES`.
 
     Parameters
     ----------
@@ -62,10 +67,15 @@ def pose_errors(q_est: Any, t_est: Any, q_gt: Any, t_gt: Any,
         The true ones.
     group
         The target's symmetries (``None``: none).
+    scorer
+        The target's vertices and symmetries for ADD, ADD-S, MSSD and SPEED+
+        (:class:`~lidarsim_core.evaluate.scores.TargetScorer`); ``None``: those are not
+        computed.
     """
     t_est = np.asarray(t_est, dtype=np.float64)
     q_gt = np.asarray(q_gt, dtype=np.float64)
     t_gt = np.asarray(t_gt, dtype=np.float64)
+    given = pose_matrix(q_gt, t_gt)  # ADD is against the given truth, whatever the symmetry
     if group is not None and (group.continuous is not None or len(group.finite) > 1):
         truth = closest_equivalent(pose_matrix(q_gt, t_gt), pose_matrix(q_est, t_est), group)
         q_gt = Rotation.from_matrix(truth[:3, :3]).as_quat()
@@ -74,5 +84,8 @@ def pose_errors(q_est: Any, t_est: Any, q_gt: Any, t_gt: Any,
     shift = float(np.linalg.norm(t_est - t_gt))
     distance = float(np.linalg.norm(t_gt))
     e_t = shift / distance if distance > 0 else math.inf
-    return {"translation_error_m": shift, "rotation_error_deg": math.degrees(angle),
-            "e_t": e_t, "e_q_rad": angle, "speed_score": e_t + angle}
+    out = {"translation_error_m": shift, "rotation_error_deg": math.degrees(angle),
+           "e_t": e_t, "e_q_rad": angle, "speed_score": e_t + angle}
+    if scorer is not None:
+        out.update(scorer.scores(pose_matrix(q_est, t_est), given, e_t, angle))
+    return out

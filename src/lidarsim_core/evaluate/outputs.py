@@ -17,12 +17,15 @@ import numpy as np
 from ..base.atomic import write_text_atomic
 from ..records.groundtruth import CONVENTION
 from .metrics import METRICS
+from .scores import (ADD_FRACTION, MSSD_FRACTIONS, SCORES, SPEEDPLUS_ORIENTATION_THRESHOLD_DEG,
+                     SPEEDPLUS_POSITION_THRESHOLD)
 
 ESTIMATES_FORMAT = "lidarsim-estimates"
 SUMMARY_FORMAT = "lidarsim-evaluation-summary"
 #: metrics.csv columns, in order.
 CSV_COLUMNS: tuple[str, ...] = ("sequence", "frame", "time_s", "range_m", "points",
-                                "target_points", *METRICS, "runtime_s", "success", "status",
+                                "target_points", *METRICS, *SCORES, "runtime_s", "success",
+                                "status",
                                 "message")
 #: Statistics of the summary.
 STATS: tuple[str, ...] = ("mean", "median", "p95")
@@ -58,8 +61,31 @@ def group_summary(records: list[dict[str, Any]], within: tuple[float, float]) ->
                            "success_rate": len(ok) / len(records) if records else None,
                            "within_rate": len(good) / len(records) if records else None}
     out.update({m: _stats([r["metrics"][m] for r in ok]) for m in METRICS})
+    out.update({m: _stats([r["metrics"].get(m) for r in ok]) for m in SCORES})
     out["runtime_s"] = _stats([r["runtime_s"] for r in records])
+    out["scores"] = literature_scores(records)
     return out
+
+
+def literature_scores(records: list[dict[str, Any]]) -> dict[str, float | None]:
+    """The scores papers report, over a group of frames: BOP's ADD(-S) accuracy and AR_MSSD
+    (a frame without an estimate counts as a miss) and the SPEED+ score (the mean over the
+    frames with an estimate)."""
+    ok = [r["metrics"] for r in records if r["status"] == "ok" and r["metrics"] and
+          "add_s_correct" in r["metrics"]]
+    n = len(records)
+    return {"add_s_accuracy": sum(m["add_s_correct"] for m in ok) / n if n else None,
+            "ar_mssd": sum(m["mssd_recall"] for m in ok) / n if n else None,
+            "speedplus_score": (sum(m["speedplus_score"] for m in ok) / len(ok)
+                                if ok else None)}
+
+
+#: The thresholds of the scores, recorded in summary.json.
+SCORE_THRESHOLDS: dict[str, Any] = {
+    "add_s_fraction_of_diameter": ADD_FRACTION,
+    "mssd_fractions_of_diameter": list(MSSD_FRACTIONS),
+    "speedplus_position": SPEEDPLUS_POSITION_THRESHOLD,
+    "speedplus_orientation_deg": SPEEDPLUS_ORIENTATION_THRESHOLD_DEG}
 
 
 def range_bin_label(low: float, high: float) -> str:
@@ -83,8 +109,11 @@ def summarise(config: dict[str, Any], records: dict[str, list[dict[str, Any]]],
             "estimator_provider": config["estimator_provider"],
             "uses_truth": config["uses_truth"], "options": config["options"],
             "split": config["split"], "symmetries": config["symmetries"],
-            "within_m_deg": config["within_m_deg"], "overall": group_summary(every, within),
-            "sequences": {name: group_summary(rs, within) for name, rs in records.items()},
+            "within_m_deg": config["within_m_deg"], "score_thresholds": SCORE_THRESHOLDS,
+            "overall": group_summary(every, within),
+            "sequences": {name: {**group_summary(rs, within),
+                                 "target_diameter_m": rs[0].get("target_diameter_m") if rs
+                                 else None} for name, rs in records.items()},
             "range_bins": by_range}
 
 
@@ -121,7 +150,8 @@ def _metrics_csv(records: dict[str, list[dict[str, Any]]]) -> str:
         for r in rs:
             metrics = r["metrics"] or {}
             row = [r["sequence"], r["frame"], r["time_s"], r["range_m"], r["points"],
-                   r["target_points"], *[metrics.get(m) for m in METRICS], r["runtime_s"],
+                   r["target_points"], *[metrics.get(m) for m in (*METRICS, *SCORES)],
+                   r["runtime_s"],
                    r["status"] == "ok", r["status"], r["estimate"].get("message", "")]
             writer.writerow([_cell(v) for v in row])
     return buffer.getvalue()

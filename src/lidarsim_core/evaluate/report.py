@@ -122,6 +122,24 @@ def _stats_table(rows: list[tuple[str, dict[str, Any]]], within: list[float]) ->
     return f"<table>{head}{''.join(body)}</table>"
 
 
+def _scores_table(rows: list[tuple[str, dict[str, Any]]]) -> str:
+    head = ("<tr><th></th><th>ADD (m)<br>mean / median</th><th>ADD-S (m)<br>mean / median</th>"
+            "<th>ADD(-S) accuracy<br>&lt; 10 % of d</th><th>MSSD (m)<br>mean / median</th>"
+            "<th>AR<sub>MSSD</sub></th><th>SPEED+ score</th></tr>")
+    body = []
+    for label, s in rows:
+        scores = s.get("scores", {})
+        cells = [f"<td>{html.escape(label)}</td>"]
+        for m in ("add_m", "adds_m"):
+            cells.append(f"<td>{_fmt(s[m]['mean'])} / {_fmt(s[m]['median'])}</td>")
+        cells.append(f"<td>{_percent(scores.get('add_s_accuracy'))}</td>")
+        cells.append(f"<td>{_fmt(s['mssd_m']['mean'])} / {_fmt(s['mssd_m']['median'])}</td>")
+        cells.append(f"<td>{_fmt(scores.get('ar_mssd'))}</td>"
+                     f"<td>{_fmt(scores.get('speedplus_score'))}</td>")
+        body.append("<tr>" + "".join(cells) + "</tr>")
+    return f"<table>{head}{''.join(body)}</table>"
+
+
 _CSS = """body{font-family:system-ui,sans-serif;margin:2em;max-width:1200px;color:#222}
 table{border-collapse:collapse;margin:0.5em 0 1.5em;font-size:0.9em}
 td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}th{background:#eef}
@@ -152,6 +170,19 @@ def _html(config: dict[str, Any], records: dict[str, list[dict[str, Any]]],
                  + "</table>")
     within = config["within_m_deg"]
     parts.append("<h2>Summary</h2>" + _stats_table([("all frames", summary["overall"])], within))
+    t = summary["score_thresholds"]
+    diameters = sorted({s["target_diameter_m"] for s in summary["sequences"].values()
+                        if s.get("target_diameter_m") is not None})
+    parts.append("<h2>Scores of the literature</h2>" + _scores_table(
+        [("all frames", summary["overall"]), *summary["sequences"].items()]) +
+        "<p>On the target mesh's vertices (diameter d = "
+        f"{', '.join(f'{d:.4g}' for d in diameters) or '–'} m): ADD (Hinterstoisser et al. "
+        "2012), ADD-S (Hodaň et al. 2016; it decides the accuracy when symmetries are "
+        f"declared) and the share of frames with ADD(-S) &lt; {t['add_s_fraction_of_diameter']:g}"
+        " d (frames without an estimate count as misses); MSSD and its average recall over "
+        "τ = 0.05-0.5 d (BOP); SPEED+ score: e_t zeroed below "
+        f"{t['speedplus_position']:g} (2.173 mm per metre), e_q below "
+        f"{t['speedplus_orientation_deg']:g}°, mean over the frames with an estimate.</p>")
     parts.append("<h2>Per sequence</h2>" + _stats_table(list(summary["sequences"].items()),
                                                         within))
     parts.append("<h2>Per range bin</h2>" + _stats_table(

@@ -34,10 +34,12 @@ from .data import (
 )
 from .extras import require
 from .metrics import pose_errors
+from .scores import TargetScorer
 from .symmetry import Symmetry, SymmetryGroup
 
 CONFIG_FORMAT = "lidarsim-evaluation"
-CONFIG_VERSION = 1
+#: 2: frame records carry the scores of :mod:`.scores` (records of version 1 are not reused).
+CONFIG_VERSION = 2
 CONFIG_FILE = "evaluation.json"
 RECORDS_DIR = "frames"
 #: Default edges of the range bins of the summary (m); the last bin is open.
@@ -137,7 +139,8 @@ def _valid(estimate: Any, t_start: float, t_end: float) -> tuple[PoseEstimate, s
 
 def _run_frame(seq: SequenceData, entry: Any, target: int, estimator: PoseEstimator,
                previous: PoseEstimate | None, group: SymmetryGroup, segment: bool, seed: int,
-               timer: Callable[[], float]) -> dict[str, Any]:
+               timer: Callable[[], float], scorer: TargetScorer | None = None
+               ) -> dict[str, Any]:
     columns = read_frame_columns(entry.path)
     n_all = len(columns["x"])
     detected = np.asarray(columns["detected"]) == 1 if "detected" in columns else \
@@ -172,14 +175,16 @@ def _run_frame(seq: SequenceData, entry: Any, target: int, estimator: PoseEstima
     if status == "ok":
         t_est = estimate.time_s if estimate.time_s is not None else t_ref
         q_gt, r_gt = (q_ref, r_ref) if t_est == t_ref else seq.truth(entry.frame, target, t_est)
-        metrics = pose_errors(estimate.quaternion_xyzw, estimate.translation_m, q_gt, r_gt, group)
+        metrics = pose_errors(estimate.quaternion_xyzw, estimate.translation_m, q_gt, r_gt, group,
+                              scorer)
     return {"version": CONFIG_VERSION, "sequence": seq.name, "frame": entry.frame,
             "time_s": t_ref, "range_m": float(np.linalg.norm(r_ref)), "points": int(keep.sum()),
             "target_points": int(on_target.sum()), "status": status,
             "estimate": estimate.to_record(),
             "truth": {"q_target_in_sensor": [float(v) for v in q_ref],
                       "r_target_in_sensor_m": [float(v) for v in r_ref]},
-            "metrics": metrics, "runtime_s": float(runtime)}
+            "metrics": metrics, "runtime_s": float(runtime),
+            "target_diameter_m": None if scorer is None else scorer.diameter_m}
 
 
 class _Progress:
@@ -304,6 +309,7 @@ def evaluate_dataset(dataset: str | Path, out: str | Path, estimator: str,
             folder = dirs[seq.name]
             folder.mkdir(parents=True, exist_ok=True)
             est.start_sequence(seq.model(index))
+            scorer = TargetScorer(seq.model(index).vertices, group)
             previous: PoseEstimate | None = None
             records[seq.name] = []
             for entry in seq.frames:
@@ -311,7 +317,7 @@ def evaluate_dataset(dataset: str | Path, out: str | Path, estimator: str,
                 record = _stored(path, seq.name, entry.frame)
                 if record is None:
                     record = _run_frame(seq, entry, index, est, previous, group, segment, seed,
-                                        timer)
+                                        timer, scorer)
                     write_text_atomic(path, json.dumps(record, sort_keys=True) + "\n")
                     evaluated += 1
                     progress.advance(record["status"] != "ok")

@@ -104,12 +104,13 @@ def parse_symmetry(spec: str) -> tuple[str | None, Symmetry]:
         raise ConfigError(f"symmetry '{spec}': {message}", field="--symmetry") from None
 
 
-def _axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
+def axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
+    """3×3 rotation by ``angle`` (rad) about the unit ``axis`` (Rodrigues)."""
     k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
     return np.cos(angle) * np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * np.outer(axis, axis)
 
 
-def _about(rotation: np.ndarray, centre: np.ndarray) -> np.ndarray:
+def turn_about(rotation: np.ndarray, centre: np.ndarray) -> np.ndarray:
     """4×4 transform ``x ↦ R (x − c) + c``."""
     out = np.eye(4)
     out[:3, :3] = rotation
@@ -153,7 +154,7 @@ class SymmetryGroup:
         if len(continuous) > 1:
             raise ConfigError("at most one axisymmetric ('inf') symmetry per target",
                               field="--symmetry")
-        generators = [_about(_axis_rotation(np.asarray(s.axis), 2 * np.pi / int(s.order)),
+        generators = [turn_about(axis_rotation(np.asarray(s.axis), 2 * np.pi / int(s.order)),
                              np.asarray(s.centre_m, dtype=np.float64))
                       for s in symmetries if s.order != "inf"]
         elements = [np.eye(4)]
@@ -218,7 +219,7 @@ def closest_equivalent(truth: np.ndarray, estimate: np.ndarray,
             k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]],
                           [-axis[1], axis[0], 0]])
             theta = math.atan2(np.trace(m @ k), np.trace(m) - axis @ m @ axis)
-            candidate = truth @ _about(_axis_rotation(axis, theta), centre) @ g
+            candidate = truth @ turn_about(axis_rotation(axis, theta), centre) @ g
         angle = _rotation_angle(candidate[:3, :3], r_est)
         shift = float(np.linalg.norm(candidate[:3, 3] - estimate[:3, 3]))
         if angle < best_key[0] - 1e-9 or (abs(angle - best_key[0]) <= 1e-9 and

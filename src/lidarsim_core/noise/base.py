@@ -15,6 +15,7 @@ the model's stream name and the ray index, so noise is reproducible and chunk-in
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -22,15 +23,20 @@ from ..base.components import Component
 from ..scenario.datasheet import SensorDatasheet
 from .rng import ray_normals, ray_uniforms
 
+if TYPE_CHECKING:
+    from ..instrument.linkbudget import LinkBudget
+
 
 @dataclass(frozen=True)
 class NoiseContext:
-    """What a noise model may depend on besides the rays: the sensor, the seed and the frame."""
+    """What a noise model may depend on besides the rays: the sensor, the seed and the frame,
+    and the calibrated link budget (``None`` without ``sensor.detection``)."""
 
     sensor: SensorDatasheet
     seed: int
     frame: int
     stream: str
+    link: "LinkBudget | None" = None
 
     def normals(self, ray_index: np.ndarray, draws: int) -> np.ndarray:
         """(N, draws) standard normals for these rays from this model's own stream."""
@@ -59,6 +65,13 @@ class Returns:
         (N,) float64 range the sensor reports (m).
     direction_measured
         (N, 3) unit direction along which the reported point is placed.
+    signal
+        (N,) received signal of each return from the link budget (threshold units of
+        ``NoiseContext.link``; without it ``ρ_eff / R²``, the same up to the constant), or
+        None when the caller has none. False alarms carry the threshold (1), or 0.
+    noise_scale
+        (N,) receiver noise over its own σ_n, √(1 + B), where background light B (the Sun,
+        the Earth) raises it; None: no background.
     """
 
     ray_index: np.ndarray
@@ -66,6 +79,8 @@ class Returns:
     range_true: np.ndarray
     range_measured: np.ndarray
     direction_measured: np.ndarray
+    signal: np.ndarray | None = None
+    noise_scale: np.ndarray | None = None
 
     def __len__(self) -> int:
         return len(self.ray_index)

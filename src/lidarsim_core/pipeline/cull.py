@@ -30,7 +30,8 @@ with and without culling and compare every column.
 Culling is used when the compiled kernels are (:mod:`lidarsim_core.kernels`) and every
 ray-stage noise model describes itself through
 :meth:`~lidarsim_core.noise.base.NoiseModel.ray_rotation`; not with false-alarm models, which
-add returns to pulses that hit nothing. Multipath bounces and the Sun's shadow rays and
+add returns to pulses that hit nothing, nor with ``earth`` (a pulse that misses every target
+may see the sunlit Earth and raise a false alarm). Multipath bounces and the Sun's shadow rays and
 background start from a pulse's direct hit, so a culled pulse (which hits nothing) has none of
 them either: culling stays exact with ``sensor.multipath`` and ``sun`` (tested).
 """
@@ -78,6 +79,8 @@ class PulseCuller:
     def for_context(cls, ctx: RunContext) -> "PulseCuller | None":
         """The plan for ``ctx``, or None when culling does not apply (see module docstring)."""
         if not kernels.enabled() or any(isinstance(m, SpuriousReturnModel) for m in ctx.noise):
+            return None
+        if ctx.scenario.earth is not None:  # pulses that miss every target see the Earth
             return None
         margin = 0.0
         for model, nctx in zip(ctx.noise, ctx.noise_contexts(0)):

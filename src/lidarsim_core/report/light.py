@@ -1,11 +1,13 @@
-"""Report figures of light in orbit: multipath ghosts of a mirror-like panel beside a bus, and
-false alarms and returns against the Sun's angle (docs/realism.md).
+"""Report figures of light in orbit: multipath ghosts of a mirror-like panel beside a bus,
+false alarms and returns against the Sun's angle, and false alarms against the share of the
+field of view on the Earth's dayside (docs/realism.md).
 
 Drawn with matplotlib off-screen (the ``viz`` extra). From the command line::
 
     python -m lidarsim_core.report.light docs/img
 
-writes ``light_ghosts.png`` and ``light_sun_angle.png`` into the directory given.
+writes ``light_ghosts.png``, ``light_sun_angle.png`` and ``light_earth.png`` into the
+directory given.
 """
 
 from __future__ import annotations
@@ -151,6 +153,88 @@ def sun_figure(path: str | Path, *, duration_s: float = 0.1) -> dict[str, np.nda
     return sweep
 
 
+#: The Earth figure's orbit: equatorial, 780 km (Envisat's), epoch the 2024 March equinox
+#: (with u0 = 0: local noon below the target; u0 = 90°: dusk).
+EARTH_ORBIT = {"epoch": "2024-03-20T03:06:00Z", "altitude_km": 780.0, "inclination_deg": 0.0}
+
+
+#: Noise-equivalent irradiance of the Earth figure's receiver (W/m²; the default is 10).
+EARTH_FIGURE_E_EQ = 1.0
+
+
+def earth_scenario(u0_deg: float, duration_s: float = 0.05) -> Scenario:
+    """A Livox MID-70 pointed at nadir from the target's orbit, ``u0_deg`` past noon, with no
+    target in view (the only one is 50 m above, behind the sensor)."""
+    return scenario_from_dict({
+        "seed": 5, "scan": {"duration_s": duration_s}, "backend": "numpy", "noise": [],
+        "sensor": {"datasheet": "livox-mid70", "detection": {},
+                   "pose": {"quaternion_xyzw": [0.0, 0.0, 1.0, 0.0]},  # boresight to −R-bar
+                   "returns": {"mode": "multi", "max_returns": 2}},
+        "targets": [{"name": "above", "mesh": {"model": "plate", "options": {"size_m": [1, 1]}},
+                     "pose": {"position_m": [50.0, 0.0, 0.0]}}],
+        # a receiver 10x more sensitive to background light than the default, so that the
+        # dimly lit ground near the terminator gives countable false alarms
+        "sun": {"orbit": {**EARTH_ORBIT, "argument_of_latitude_deg": u0_deg},
+                "noise_equivalent_irradiance_w_m2": EARTH_FIGURE_E_EQ},
+        "earth": {},
+    })
+
+
+def earth_sweep(u0_deg: np.ndarray, duration_s: float = 0.05) -> dict[str, np.ndarray]:
+    """Per orbit position: the share of pulses whose ray meets the Earth's dayside, the
+    simulated false alarms per pulse and the model's mean P(B) − P(0), with B computed here
+    from the ray-sphere geometry of each pulse."""
+    from ..pipeline.stages.sun import sun_in_lvlh
+    from ..scenario.earth import EarthConfig
+    from ..trajectories.orbit import R_EARTH_M
+
+    day, alarms, predicted = [], [], []
+    a = R_EARTH_M + 1000.0 * EARTH_ORBIT["altitude_km"]
+    albedo = EarthConfig().albedo
+    for u0 in u0_deg:
+        scenario = earth_scenario(float(u0), duration_s)
+        sim = Simulation(scenario)
+        cloud = sim.run_frame(0)
+        stage = next(s for s in sim.stages if s.name == "sun")
+        rays = sim.pattern.rays(*scenario.scan.frame_interval(0))
+        d = rays.direction * np.array([-1.0, -1.0, 1.0])  # the sensor turned 180° about z
+        # |o + t d − c| = R⊕ with o = 0, c = (−a, 0, 0): t² + 2 a d_x t + a² − R⊕² = 0
+        disc = (a * d[:, 0]) ** 2 - (a - R_EARTH_M) * (a + R_EARTH_M)
+        t = -a * d[:, 0] - np.sqrt(np.maximum(disc, 0.0))
+        normal = (d * t[:, None] + np.array([a, 0.0, 0.0])) / R_EARTH_M
+        sun = sun_in_lvlh(scenario.sun.orbit, rays.t)[0]
+        cos_sun = np.where(disc >= 0, np.einsum("ij,ij->i", normal, sun), 0.0)
+        background = albedo * np.maximum(cos_sun, 0.0) * stage.white_background
+        day.append(float((cos_sun > 0).mean()))
+        alarms.append(float((cloud["part"] == sim.false_alarm_part).sum()) / len(rays))
+        predicted.append(float(stage.probability(background).mean()))
+    return {"u0": np.asarray(u0_deg, dtype=float), "dayside": np.array(day),
+            "false_alarms": np.array(alarms), "predicted": np.array(predicted)}
+
+
+def earth_figure(path: str | Path, *, duration_s: float = 0.1) -> dict[str, np.ndarray]:
+    """False alarms per pulse against the share of the field of view on the dayside, as the
+    terminator crosses the MID-70's view at dusk."""
+    from .charts import new_figure
+    from .render import save_figure
+
+    sweep = earth_sweep(np.arange(83.0, 97.5, 1.0), duration_s)
+    fig = new_figure(8.0, 4.5)
+    ax = fig.add_subplot(1, 1, 1)
+    ax.plot(sweep["dayside"], sweep["false_alarms"], "o", c="tab:red",
+            label="false alarms per pulse (simulated)")
+    ax.plot(sweep["dayside"], sweep["predicted"], "-", c="tab:red", alpha=0.6,
+            label="receiver model, mean of P(B) − P(0) over the pulses")
+    ax.set_xlabel("share of the field of view on the Earth's dayside")
+    ax.set_ylabel("false alarms per pulse")
+    ax.set_title("Livox MID-70 pointed at nadir from 780 km at dusk, no target in view "
+                 f"(E_eq = {EARTH_FIGURE_E_EQ:g} W/m²)", fontsize=10)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    save_figure(fig, path)
+    return sweep
+
+
 def main(argv: list[str] | None = None) -> int:
     """Write both figures into the directory given (default ``.``)."""
     args = sys.argv[1:] if argv is None else argv
@@ -164,6 +248,11 @@ def main(argv: list[str] | None = None) -> int:
                           sweep["predicted"]):
         print(f"sun {a:5.0f} deg: false alarms {f:.4f}, returns {r:.4f}, model {p:.4f}")
     print(f"-> {out / 'light_sun_angle.png'}")
+    earth = earth_figure(out / "light_earth.png")
+    for u, f, a, p in zip(earth["u0"], earth["dayside"], earth["false_alarms"],
+                          earth["predicted"]):
+        print(f"u0 {u:5.1f} deg: dayside {f:.3f}, false alarms {a:.4f}, model {p:.4f}")
+    print(f"-> {out / 'light_earth.png'}")
     return 0
 
 

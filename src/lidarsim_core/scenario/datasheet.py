@@ -11,7 +11,8 @@ import math
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import (BaseModel, ConfigDict, Field, field_validator, model_serializer,
+                      model_validator)
 
 from ..base.config_io import read_config_file
 from ..base.validation import validate_model
@@ -44,6 +45,17 @@ class RangeAtReflectivity(_Strict):
     range_m: float = Field(gt=0, description="Detection range at that reflectivity (m).")
 
 
+class RangePrecisionCondition(_Strict):
+    """The condition at which the datasheet states its range precision: a Lambertian target of
+    ``reflectivity`` at normal incidence, ``range_m`` away. The signal-driven range error
+    (noise model ``range_signal``) scales the precision from there."""
+
+    range_m: float = Field(20.0, gt=0, description="Range of the stated precision (m); Livox: "
+                                                   "20 m.")
+    reflectivity: float = Field(0.8, gt=0, le=1, description="Lambertian reflectivity of the "
+                                                             "target, 0-1; Livox: 0.8 (80 %).")
+
+
 class SensorDatasheet(_Strict):
     """A LiDAR sensor as described by its datasheet (the seed paper's fields, plus identity).
 
@@ -70,6 +82,9 @@ class SensorDatasheet(_Strict):
     range_max_m: float = Field(gt=0, description="Maximum detection range (m).")
     range_min_m: float = Field(0.0, ge=0, description="Minimum range / blind zone (m).")
     range_precision_m: float = Field(ge=0, description="Range precision, 1 sigma (m).")
+    range_precision_condition: RangePrecisionCondition | None = Field(
+        None, description="Range and reflectivity at which range_precision_m is stated; "
+                          "default: Livox's, 20 m on an 80 % target.")
     angular_precision_deg: float = Field(ge=0, description="Angular precision, 1 sigma (deg).")
     point_rate_hz: float = Field(gt=0, description="Points emitted per second (all channels).")
     wavelength_nm: float | None = Field(None, gt=0)
@@ -95,6 +110,15 @@ class SensorDatasheet(_Strict):
     max_returns: int = Field(1, ge=1, le=15, description="Most returns the sensor reports "
                                                          "per pulse ('multi' mode).")
     scan_pattern: ScanPatternSpec
+
+    @model_serializer(mode="wrap")
+    def _drop_unset_later_fields(self, handler: Any) -> dict[str, Any]:
+        # fields added after datasheets were first written out stay out of dumps when unset,
+        # so dataset identities of older runs keep their bytes
+        data = handler(self)
+        if data.get("range_precision_condition", 0) is None:
+            del data["range_precision_condition"]
+        return data
 
     @field_validator("beam_divergence_deg")
     @classmethod

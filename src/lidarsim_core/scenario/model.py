@@ -33,6 +33,7 @@ from pydantic import (
     Field,
     PrivateAttr,
     field_validator,
+    model_serializer,
     model_validator,
 )
 
@@ -46,6 +47,7 @@ from .sensor import (
     ReceiverConfig,
     ReturnsConfig,
 )
+from .earth import EarthConfig
 from .sun import SunConfig
 
 
@@ -215,6 +217,10 @@ def _check_frame_count(frames: float, what: str) -> None:
 _REALISM_SENSOR_FIELDS = ("beam", "detection", "returns", "multipath", "receiver")
 
 
+#: Top-level blocks added later, left out of dumps when unset (see ``Scenario``).
+_LATER_BLOCKS = ("earth",)
+
+
 class Scenario(_Strict):
     """A complete simulation set-up."""
 
@@ -232,6 +238,9 @@ class Scenario(_Strict):
     sun: SunConfig | None = Field(
         None, description="The Sun: shadows, solar background false alarms and blinding "
                           "(needs sensor.detection); omitted: a dark sky.")
+    earth: EarthConfig | None = Field(
+        None, description="The Earth as a background source behind the target, from the orbit "
+                          "and epoch of sun.orbit; omitted: no Earth.")
     chunk_rays: int = Field(131072, ge=1, description="Rays processed per chunk (memory bound).")
     materials: dict[str, dict[str, Any]] = Field(
         default_factory=dict, description="Your own named materials (name → material fields: "
@@ -259,6 +268,16 @@ class Scenario(_Strict):
         if dup:
             raise ValueError(f"target names must be unique; repeated: {sorted(dup)}")
         return self
+
+    @model_serializer(mode="wrap")
+    def _drop_unset_blocks(self, handler: Any) -> dict[str, Any]:
+        # blocks added after scenarios were first written out stay out of every dump when
+        # unset, so copies, hashes and dataset identities of older scenarios keep their bytes
+        data = handler(self)
+        for key in _LATER_BLOCKS:
+            if key in data and data[key] is None:
+                del data[key]
+        return data
 
     @property
     def source(self) -> str:
@@ -290,8 +309,9 @@ class Scenario(_Strict):
                 target.pop("materials", None)
         if not data.get("materials"):
             data.pop("materials", None)
-        if data.get("sun") is None:
-            data.pop("sun", None)
+        for key in ("sun", "earth"):
+            if data.get(key) is None:
+                data.pop(key, None)
         canon = json.dumps(data, sort_keys=True, separators=(",", ":"))
         return hashlib.sha256(canon.encode("utf-8")).hexdigest()[:16]
 

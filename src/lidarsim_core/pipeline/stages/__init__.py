@@ -55,6 +55,9 @@ def measurement_stages(ctx: RunContext) -> list[Stage]:
                               "'detection: {}' to the sensor", source=scenario.source,
                               field="sensor.multipath")
         stages.append(BounceStage(ctx, multipath))
+    if scenario.earth is not None and scenario.sun is None:
+        raise ConfigError("the Earth's place and its sunlit side follow the target's orbit and "
+                          "epoch; add sun: {orbit: ...}", source=scenario.source, field="earth")
     if scenario.sun is not None:
         stages.append(SunStage(ctx, scenario.sun, stages[0]))
     stages.append(DetectionStage(ctx))

@@ -30,6 +30,10 @@ inertial direction comes from the Astronomical Almanac's low-precision solar coo
 **Detection.** The same noise lowers the detection probability of the pulse's real returns,
 ``P_d = Φ(TNR (S − 1) / √(1 + B))``: sunlit surfaces are seen less far.
 
+**The Earth** (scenario block ``earth``, with ``orbit``): pulses whose rays meet no target
+but the sunlit Earth get its background too (:mod:`.earth`), added to the surfaces' before
+the false alarms are drawn.
+
 **Blinding.** Pulses whose flown direction lies within ``blinding_angle_deg`` of the Sun are
 blinded (the Sun floods the receiver): they report nothing. The default is the Sun's angular
 radius (0.2666°) plus the receiver's acceptance half-angle: the solar disc inside the
@@ -54,6 +58,7 @@ from ...instrument.returns import Candidates
 from ...noise.rng import ray_uniforms
 from .base import Piece
 from .bounces import BOUNCE_OFFSET_M
+from .earth import EarthBackground
 
 if TYPE_CHECKING:
     from .candidates import CandidateStage
@@ -194,6 +199,15 @@ class SunStage:
         self.backend, self.targets, self.materials = ctx.backend, ctx.targets, ctx.materials
         self.sub_rays = ctx.sub_rays
         self.candidates = candidates
+        #: The Earth as a background source (scenario block ``earth``), or None.
+        self.earth: EarthBackground | None = None
+        if ctx.scenario.earth is not None:
+            if self.orbit is None:
+                raise ConfigError("the Earth's place and its sunlit side follow the target's "
+                                  "orbit and epoch; give sun: {orbit: ...} instead of a fixed "
+                                  "direction", source=src, field="earth")
+            self.earth = EarthBackground(ctx.scenario.earth, self.orbit.altitude_km,
+                                         self.white_background)
 
     def info(self) -> dict:
         """Frame metadata: direction or orbit, irradiance, filter, white background, blinding."""
@@ -202,7 +216,8 @@ class SunStage:
                 "spectral_irradiance_w_m2_nm": self.irradiance,
                 "filter_width_nm": self.filter_width_nm,
                 "white_background": self.white_background,
-                "blinding_angle_deg": self.blinding_deg}
+                "blinding_angle_deg": self.blinding_deg,
+                **({} if self.earth is None else {"earth": self.earth.info()})}
 
     def probability(self, background: np.ndarray) -> np.ndarray:
         """Solar false alarms per pulse: P(B) − P(0)."""
@@ -225,6 +240,8 @@ class SunStage:
         # blinding: the flown direction (scene frame) within the angle of the Sun
         blinded = shining & (rowdot(scene.vectors[0], sun) >= self.cos_blinding)
         background = self.background(hits, scene, k, n, sun) * shining
+        if self.earth is not None:  # lit even while the target is in the Earth's shadow
+            background = background + self.earth_background(hits, scene, k, n, sun)
         piece.noise_scale = np.sqrt(1.0 + background)
         u = ray_uniforms(self.seed, piece.frame, SUN_STREAM, batch.index, 2)
         alarm = np.flatnonzero((u[:, 0] < self.probability(background)) & ~blinded)
@@ -266,6 +283,18 @@ class SunStage:
         contribution[lit] = (weight[lit] * self.materials.diffuse[hits.part[ray[lit]]]
                              * cos_sun[lit] * self.white_background)
         return np.bincount(pulse, weights=contribution, minlength=n)
+
+    def earth_background(self, hits, scene, k: int, n: int, sun: np.ndarray) -> np.ndarray:
+        """B of every pulse from the sunlit Earth, seen by its (sub-)rays that meet no
+        target (:class:`~.earth.EarthBackground`)."""
+        ray = np.flatnonzero(hits.target < 0)
+        pulse = ray // k
+        d_all = scene.vectors[0] if self.sub_rays is None else \
+            self.sub_rays.directions(*scene.vectors)
+        origin = scene.origin if len(scene.origin) == 1 else scene.origin[pulse]
+        weight = np.full(len(ray), 1.0 / k) if self.sub_rays is None else \
+            self.sub_rays.weights[ray % k]
+        return self.earth.background(origin, d_all[ray], pulse, weight, sun, n)
 
     def _shadowed(self, point: np.ndarray, sun: np.ndarray, pulse: np.ndarray,
                   target_poses: list, distance: np.ndarray, from_target: np.ndarray,
