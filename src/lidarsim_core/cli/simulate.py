@@ -36,15 +36,19 @@ def simulate(scenario: Path = typer.Argument(..., help="Scenario file (YAML, TOM
              range_image: bool = typer.Option(False, "--range-image", help="Also write each "
                                               "frame's organised range image: <name>.range.npz"
                                               " and a 16-bit <name>.range.png."),
+             dialect: Optional[str] = typer.Option(
+                 None, "--dialect", help="PLY and CSV column names: 'standard' (default) or "
+                                         "'cloudcompare' (scalar_<column>: every column a "
+                                         "named scalar field in CloudCompare)."),
              ) -> None:
     """Simulate a scenario file and write the point cloud(s), or one ROS 2 bag (.mcap)."""
     run_guarded(lambda: _simulate(scenario, out, frame, fmt, overwrite, backend, seed, livox,
-                                  range_image))
+                                  range_image, dialect))
 
 
 def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwrite: bool,
               backend: str | None, seed: int | None, livox: bool = False,
-              range_image: bool = False) -> None:
+              range_image: bool = False, dialect: str | None = None) -> None:
     from ..base.errors import ConfigError, OutputError
     from ..base.outputs import check_file, make_parent
     from ..io.paths import frame_paths, has_frame_field
@@ -69,6 +73,10 @@ def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwri
         raise ConfigError(f"--frame {frame} is outside 0..{n_frames - 1}", source=path,
                           field="scan.frames")
     frames = [frame] if frame is not None else list(range(n_frames))
+    if dialect is not None and not (fmt in ("ply", "csv") or
+                                    (fmt is None and out.suffix.lower() in (".ply", ".csv"))):
+        raise OutputError("--dialect applies to PLY and CSV output (--out cloud.ply or "
+                          "cloud.csv)", source=out)
     if out.suffix.lower() == ".mcap" or fmt == "mcap":  # every frame into one ROS 2 bag
         from .bag import simulate_to_bag
 
@@ -81,7 +89,9 @@ def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwri
         raise OutputError(f"the scenario has {len(frames)} frames: put '{{frame}}' in --out "
                           "(e.g. cloud_{frame:04d}.ply) or choose one with --frame", source=out)
     targets = frame_paths(out, frames) if templated else [out]
-    exporter = exporter_for(targets[0], fmt)  # unknown format: fail before simulating
+    # unknown format or option: fail before simulating
+    exporter = exporter_for(targets[0], fmt,
+                            options={"dialect": dialect} if dialect is not None else None)
     for target in targets:  # every output is checked before any work (lidarsim_core.base.outputs)
         check_file(target, overwrite=overwrite)
     sim = Simulation(scenario)  # guards third-party components itself

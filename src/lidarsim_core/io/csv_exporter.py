@@ -4,7 +4,13 @@ A header row names the columns (point-record order); floating-point values are w
 Python's shortest round-trip form (``repr``), so parsing them gives back the same float64 bits;
 integers as integers. Plain RFC 4180 CSV with ``\\n`` line ends and no comment lines, so any
 reader (pandas, numpy, spreadsheets, CloudCompare's ASCII import with a header line) takes it;
-the frame metadata therefore lives only in the sidecar JSON. Text is ~3x larger and much slower
+the frame metadata therefore lives only in the sidecar JSON.
+
+Option ``dialect: cloudcompare`` (CLI ``--dialect cloudcompare``) writes the header line as
+``//x,y,z,scalar_x_true,...``: CloudCompare's ASCII loader reads column names only from a
+first line starting with ``//``, and loads a column as a scalar field only when its name
+contains ``scalar`` (otherwise it guesses from the values: small integers become colours,
+values within ±1 normals; :mod:`lidarsim_core.io.dialects`). ``ls.read`` takes both headers. Text is ~3x larger and much slower
 to write than the binary formats: use it for small clouds and inspection.
 """
 
@@ -14,8 +20,12 @@ from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
 
+from pydantic import Field
+
+from ..base.components import ComponentOptions
 from ..hookspecs import hookimpl
 from .base import Exporter
+from .dialects import CLOUDCOMPARE_HEADER, Dialect, column_name
 
 if TYPE_CHECKING:
     from .points import PointSource
@@ -29,15 +39,29 @@ def _texts(values: np.ndarray) -> list[str]:
     return [str(v) for v in values.tolist()]
 
 
+class CsvOptions(ComponentOptions):
+    """Options of the CSV exporter."""
+
+    dialect: Dialect = Field(
+        "standard", description="Header row: 'standard' (the point-record names, for pandas "
+                                "and spreadsheets) or 'cloudcompare' (//x,y,z,scalar_<column>"
+                                "..., every column a named scalar field in CloudCompare).")
+
+
 class CsvExporter(Exporter):
     """CSV with a header row, every column, floats in shortest exact form (metadata: sidecar)."""
 
     name = "csv"
     suffixes = (".csv",)
+    Options = CsvOptions
+    options: CsvOptions
 
     def write_points(self, points: "PointSource", stream: IO[bytes]) -> None:
         names = list(points.fields)
-        stream.write((",".join(names) + "\n").encode("ascii"))
+        header = ",".join(column_name(name, self.options.dialect) for name in names)
+        if self.options.dialect == "cloudcompare":
+            header = CLOUDCOMPARE_HEADER + header
+        stream.write((header + "\n").encode("ascii"))
         for chunk in points.iter_chunks(names, size=_CHUNK_POINTS):
             columns = [_texts(chunk[name]) for name in names]
             rows = "\n".join(",".join(row) for row in zip(*columns))

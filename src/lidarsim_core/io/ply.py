@@ -24,6 +24,11 @@ characters (:mod:`lidarsim_core.io.headermeta`; RPly aborts the process on a hea
 ``comment lidarsim-target <index> "<name>"`` lines (the name as an ASCII JSON string: plyfile
 decodes headers as ASCII), so that ``part`` and ``target`` can be labelled with nothing but a
 PLY reader. The sidecar JSON holds the metadata too.
+
+Option ``dialect: cloudcompare`` (CLI ``--dialect cloudcompare``) names every property but
+x, y, z ``scalar_<column>``, so that CloudCompare loads each as a scalar field (it keeps only
+x, y, z and ``intensity`` of the standard names; :mod:`lidarsim_core.io.dialects`);
+:func:`read_ply_columns` maps the names back.
 Written chunk by chunk from NumPy structured arrays: the format is a header plus raw bytes.
 """
 
@@ -35,9 +40,13 @@ from typing import IO, TYPE_CHECKING, Any
 
 import numpy as np
 
+from pydantic import Field
+
+from ..base.components import ComponentOptions
 from ..base.errors import ConfigError, OutputError
 from ..hookspecs import hookimpl
 from .base import Exporter
+from .dialects import Dialect, column_name, record_names
 from .headermeta import metadata_from_lines, metadata_lines
 
 if TYPE_CHECKING:
@@ -106,11 +115,22 @@ def _names_comments(kind: str, names: list[str]) -> list[str]:
     return lines
 
 
+class PlyOptions(ComponentOptions):
+    """Options of the PLY exporter."""
+
+    dialect: Dialect = Field(
+        "standard", description="Property names: 'standard' (the point-record names) or "
+                                "'cloudcompare' (scalar_<column>, loaded by CloudCompare as "
+                                "scalar fields).")
+
+
 class PlyExporter(Exporter):
     """Binary PLY with every column as a vertex property and metadata in short comments."""
 
     name = "ply"
     suffixes = (".ply",)
+    Options = PlyOptions
+    options: PlyOptions
 
     def write_points(self, points: "PointSource", stream: IO[bytes]) -> None:
         layout = ply_layout(points.fields)
@@ -121,7 +141,8 @@ class PlyExporter(Exporter):
         header += _names_comments("part", frame.part_names)
         header += _names_comments("target", frame.target_names)
         header.append(f"element vertex {len(points)}")
-        header += [f"property {ply} {name}" for name, ply, _ in layout]
+        header += [f"property {ply} {column_name(name, self.options.dialect)}"
+                   for name, ply, _ in layout]
         header.append("end_header")
         stream.write(("\n".join(header) + "\n").encode("ascii"))
         dtype = [(n, out) for n, _, out in layout]
@@ -136,6 +157,9 @@ class PlyExporter(Exporter):
 def read_ply_columns(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str, Any] | None]:
     """The vertex properties of a binary little-endian PLY point cloud and its lidarsim
     frame metadata (``None`` when the header has none).
+
+    Properties of the ``cloudcompare`` dialect (``scalar_<column>``) come back under the
+    point-record names.
 
     Raises
     ------
@@ -185,7 +209,11 @@ def read_ply_columns(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str,
     if len(data) != count:
         raise ConfigError(f"PLY file is truncated: {len(data)} of {count} vertices",
                           source=path)
-    columns = {name: np.array(data[name]) for name in dtype.names or ()}
+    from ..records.pointcloud import POINT_FIELDS
+
+    names = list(dtype.names or ())
+    columns = {new: np.array(data[name])
+               for name, new in zip(names, record_names(names, POINT_FIELDS))}
     return columns, metadata_from_lines(comments, METADATA_PREFIX)
 
 

@@ -17,6 +17,7 @@ from typing import Any, Callable
 import numpy as np
 
 from ..base.errors import ConfigError
+from .dialects import CLOUDCOMPARE_HEADER, record_names
 from ..records.pointcloud import POINT_FIELDS, PointCloud
 from .columns import cloud_from_columns
 
@@ -56,7 +57,10 @@ def _csv(path: Path) -> tuple[dict[str, np.ndarray], dict[str, Any] | None]:
             raise ConfigError(f"cannot read CSV: {exc}", source=path) from None
     if not rows:
         raise ConfigError("CSV file is empty (no header row)", source=path)
-    names, body = rows[0], rows[1:]
+    names, body = list(rows[0]), rows[1:]
+    if names and names[0].startswith(CLOUDCOMPARE_HEADER):  # the cloudcompare dialect
+        names[0] = names[0][len(CLOUDCOMPARE_HEADER):]
+    names = record_names(names, POINT_FIELDS)
     if any(len(row) != len(names) for row in body):
         raise ConfigError("CSV rows differ in length from the header row", source=path)
     columns: dict[str, np.ndarray] = {}

@@ -146,23 +146,29 @@ def target_mesh(registry: Registry, scenario: Scenario, index: int) -> Mesh:
 
 
 def exporter_for(path: str | Path, format: str | None = None, *,
-                 registry: Registry | None = None) -> Exporter:
-    """The exporter selected by ``format`` (a registered name) or by the suffix of ``path``;
-    a third-party one is guarded (:mod:`lidarsim_core.plugins.guards`), so that its failure is
-    reported by name and leaves no file.
+                 registry: Registry | None = None,
+                 options: dict[str, Any] | None = None) -> Exporter:
+    """The exporter selected by ``format`` (a registered name) or by the suffix of ``path``,
+    built with ``options`` (e.g. ``{"dialect": "cloudcompare"}``); a third-party one is
+    guarded (:mod:`lidarsim_core.plugins.guards`), so that its failure is reported by name and
+    leaves no file.
 
     Raises
     ------
     OutputError
         If no exporter handles the suffix (naming the known ones).
+    ConfigError
+        If the exporter has no such option or rejects its value.
     """
     registry = registry or get_registry()
     if format:
-        return guard_exporter(registry.get("exporter", format, field="format")(), registry)
+        cls = registry.get("exporter", format, field="format")
+        return guard_exporter(cls.from_config(options, field="exporter_options"), registry)
     suffix = Path(path).suffix.lower()
     for entry in registry.iter("exporter"):
         if suffix in entry.obj.suffixes:
-            return guard_exporter(entry.obj(), registry)
+            return guard_exporter(entry.obj.from_config(options, field="exporter_options"),
+                                  registry)
     known = sorted(s for e in registry.iter("exporter") for s in e.obj.suffixes)
     raise OutputError(f"no exporter for suffix '{suffix or '(none)'}'; known: {', '.join(known)}",
                       source=path)
