@@ -9,8 +9,13 @@ X, Y, Z               x, y, z (sensor frame), integers of ``scale_m`` (default 0
                       offset 0: rounded to the nearest step, so |error| <= scale_m / 2
 gps_time              timestamp: seconds from the scenario epoch (not GPS time; global
                       encoding says "GPS week time", the field's neutral setting)
-intensity             the ``intensity`` column when there is one (a float column is read
-                      as 0..1 and scaled to 0..65535, an integer column is clipped), else 0
+intensity             the ``intensity`` column when there is one: a float column (apparent
+                      reflectivity, unbounded: glints and retro-reflectors exceed 1) as
+                      ``round(intensity / s)`` with the file's scale
+                      ``s = max(1, brightest intensity) / 65535``, so nothing clips and the
+                      brightest return reads 65535 (s = 1/65535, "65535 is reflectivity 1",
+                      when no return exceeds 1); ``s`` is in VLR ``lidarsim``/4. An integer
+                      column is clipped to 0..65535. Without the column, 0
 return_number,        the same columns (LAS holds 1..15; larger values are an error)
 number_of_returns
 classification        64 + part (ASPRS classes 64..255 are user-definable), named in a
@@ -19,7 +24,7 @@ classification        64 + part (ASPRS classes 64..255 are user-definable), name
 extra bytes           every other column under its own name and exact type (x_true, range,
                       ray_index as int64, ...), described in the standard Extra Bytes VLR,
                       and ``reflectivity``: the exact float32 ``intensity`` (the standard
-                      field clips it to 0..1 and rounds it to 1/65535)
+                      field holds it to half a step of ``s``)
 ====================  =================================================================
 
 The frame metadata (poses, sensor, seed, configuration hash...) is JSON in a VLR with user ID
@@ -27,7 +32,9 @@ The frame metadata (poses, sensor, seed, configuration hash...) is JSON in a VLR
 holds 15 ASCII characters per class (and laspy's parser drops every character but letters,
 digits and spaces when it reads one: ``panel_right`` comes back as ``panelright``), so the
 exact part names are also in VLR ``lidarsim``/2 and the target names in ``lidarsim``/3, as
-UTF-8 text with one name per line (part *i* on line *i*, class 64 + *i*). The project GUID is
+UTF-8 text with one name per line (part *i* on line *i*, class 64 + *i*). VLR ``lidarsim``/4
+holds the intensity scale as JSON, ``{"intensity_scale": s}``: ``Intensity × s`` is the
+apparent reflectivity within ``s / 2`` (1/131070 of the file's brightest return). The project GUID is
 derived from the configuration hash and the frame index; system identifier and generating
 software name lidarsim. The file creation day and year are written as 0 ("unknown"): a
 regenerated frame is identical to the bit.
@@ -64,6 +71,10 @@ METADATA_RECORD_ID = 1
 #: VLRs holding the exact part and target names, one per line.
 PART_NAMES_RECORD_ID = 2
 TARGET_NAMES_RECORD_ID = 3
+#: VLR holding the scale of the standard intensity field (JSON ``{"intensity_scale": s}``).
+INTENSITY_SCALE_RECORD_ID = 4
+#: Intensity scale when no return is brighter than reflectivity 1: 65535 is reflectivity 1.
+UNIT_INTENSITY_SCALE = 1.0 / 65535.0
 #: Extra-bytes column holding the exact float ``intensity``.
 EXACT_INTENSITY = "reflectivity"
 #: Classification of part 0; ASPRS reserves 0..63.
@@ -104,16 +115,39 @@ def _class_label(name: str) -> str:
     return short[:15]
 
 
-def _intensity_u16(values: np.ndarray) -> np.ndarray:
+def intensity_scale(brightest: float) -> float:
+    """The scale ``s`` of LAS's 16-bit intensity for a file whose brightest float intensity is
+    ``brightest``: ``max(1, brightest) / 65535``, so that no return clips and the brightest
+    reads 65535 (65535 is reflectivity 1 when no return is brighter)."""
+    if not np.isfinite(brightest) or brightest <= 1.0:
+        return UNIT_INTENSITY_SCALE
+    return float(brightest) / 65535.0
+
+
+def _intensity_u16(values: np.ndarray, scale: float) -> np.ndarray:
     if values.dtype.kind == "f":
-        return np.round(np.clip(values.astype(np.float64), 0.0, 1.0) * 65535.0).astype(np.uint16)
+        counts = np.round(np.nan_to_num(values.astype(np.float64), nan=0.0) / scale)
+        return np.clip(counts, 0.0, 65535.0).astype(np.uint16)
     return np.clip(values, 0, 65535).astype(np.uint16)
 
 
+def _brightest(points: "PointSource") -> float:
+    brightest = 0.0
+    for chunk in points.iter_chunks(["intensity"], size=_CHUNK_POINTS):
+        values = chunk["intensity"][np.isfinite(chunk["intensity"])]
+        if len(values):
+            brightest = max(brightest, float(values.max()))
+    return brightest
+
+
+def _float_intensity(fields: dict[str, np.dtype]) -> bool:
+    # a float intensity is scaled into the standard u16 field (scale in VLR lidarsim/4)
+    return "intensity" in fields and np.dtype(fields["intensity"]).kind == "f"
+
+
 def _exact_intensity(fields: dict[str, np.dtype]) -> bool:
-    # a float intensity loses range and precision in the standard u16 field
-    return ("intensity" in fields and np.dtype(fields["intensity"]).kind == "f"
-            and EXACT_INTENSITY not in fields)
+    # a float intensity loses precision in the standard u16 field: kept exact in extra bytes
+    return _float_intensity(fields) and EXACT_INTENSITY not in fields
 
 
 class LasExporter(Exporter):
@@ -127,7 +161,8 @@ class LasExporter(Exporter):
     #: Whether to compress (LAZ).
     compress: ClassVar[bool] = False
 
-    def _header(self, laspy: Any, points: "PointSource") -> tuple[Any, list[str]]:
+    def _header(self, laspy: Any, points: "PointSource", scale: float
+                ) -> tuple[Any, list[str]]:
         frame = points.frame
         header = laspy.LasHeader(point_format=6, version="1.4")
         header.scales = np.full(3, self.options.scale_m)
@@ -152,6 +187,11 @@ class LasExporter(Exporter):
         vlr = laspy.VLR(user_id=METADATA_USER_ID, record_id=METADATA_RECORD_ID,
                         description="lidarsim frame metadata", record_data=blob)
         (header.vlrs if len(blob) <= _MAX_VLR_BYTES else header.evlrs).append(vlr)
+        if _float_intensity(points.fields):
+            header.vlrs.append(laspy.VLR(
+                user_id=METADATA_USER_ID, record_id=INTENSITY_SCALE_RECORD_ID,
+                description="lidarsim intensity scale",
+                record_data=json.dumps({"intensity_scale": scale}).encode("ascii")))
         for record_id, kind, names in ((PART_NAMES_RECORD_ID, "part", frame.part_names),
                                        (TARGET_NAMES_RECORD_ID, "target", frame.target_names)):
             if any("\n" in name for name in names):
@@ -165,10 +205,12 @@ class LasExporter(Exporter):
 
     def write_points(self, points: "PointSource", stream: IO[bytes]) -> None:
         laspy = _laspy()
-        header, extras = self._header(laspy, points)
+        scale = (intensity_scale(_brightest(points)) if _float_intensity(points.fields)
+                 else UNIT_INTENSITY_SCALE)
+        header, extras = self._header(laspy, points, scale)
         fields = points.fields
         with_part = classes_fit(points.frame.part_names)
-        scale = self.options.scale_m
+        xyz_scale = self.options.scale_m
         columns = ["x", "y", "z", "timestamp", "return_number", "number_of_returns",
                    *(["part"] if with_part else []),
                    *(["intensity"] if "intensity" in fields else []), *extras]
@@ -180,7 +222,7 @@ class LasExporter(Exporter):
                 n = len(chunk["x"])
                 record = laspy.ScaleAwarePointRecord.zeros(n, header=header)
                 for axis in "xyz":
-                    record[axis.upper()] = self._scaled(axis, chunk[axis], scale)
+                    record[axis.upper()] = self._scaled(axis, chunk[axis], xyz_scale)
                 record["gps_time"] = chunk["timestamp"]
                 for column in ("return_number", "number_of_returns"):
                     values = chunk[column]
@@ -191,7 +233,7 @@ class LasExporter(Exporter):
                 record["classification"] = (chunk["part"].astype(np.int64) + CLASS_OFFSET
                                             if with_part else np.ones(n, dtype=np.uint8))
                 if "intensity" in chunk:
-                    record["intensity"] = _intensity_u16(chunk["intensity"])
+                    record["intensity"] = _intensity_u16(chunk["intensity"], scale)
                     if _exact_intensity(fields):
                         record[EXACT_INTENSITY] = chunk["intensity"]
                 for name in extras:
@@ -236,10 +278,12 @@ def read_las_columns(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str,
     except Exception as exc:  # laspy raises its own and many other types on bad files
         raise ConfigError(f"cannot read LAS/LAZ: {type(exc).__name__}: {exc}",
                           source=path) from None
-    blob = None
+    blob, scale = None, UNIT_INTENSITY_SCALE
     for vlr in [*data.header.vlrs, *data.header.evlrs]:
         if vlr.user_id == METADATA_USER_ID and vlr.record_id == METADATA_RECORD_ID:
             blob = vlr.record_data
+        if vlr.user_id == METADATA_USER_ID and vlr.record_id == INTENSITY_SCALE_RECORD_ID:
+            scale = read_intensity_scale(bytes(vlr.record_data), path)
     metadata = json.loads(bytes(blob).decode("utf-8")) if blob is not None else None
     columns: dict[str, np.ndarray] = {
         "x": np.asarray(data.x, dtype=np.float64), "y": np.asarray(data.y, dtype=np.float64),
@@ -257,12 +301,31 @@ def read_las_columns(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str,
         else:
             raw = np.asarray(data.intensity)
             kind = np.dtype(POINT_FIELDS["intensity"]).kind
-            columns["intensity"] = raw / 65535.0 if kind == "f" else raw
+            columns["intensity"] = raw * scale if kind == "f" else raw
     if "part" not in columns:
         columns["part"] = (np.asarray(data.classification, dtype=np.int64)
                            - CLASS_OFFSET).astype(np.int16)
     columns = {k: v.astype(POINT_FIELDS.get(k, v.dtype), copy=False) for k, v in columns.items()}
     return columns, metadata
+
+
+def read_intensity_scale(record: bytes, source: str | Path) -> float:
+    """The intensity scale ``s`` held by VLR ``lidarsim``/4 (``Intensity × s`` is the apparent
+    reflectivity).
+
+    Raises
+    ------
+    ConfigError
+        If the record is not ``{"intensity_scale": <positive number>}``.
+    """
+    try:
+        scale = float(json.loads(record.decode("ascii"))["intensity_scale"])
+    except (ValueError, KeyError, TypeError, UnicodeDecodeError):
+        scale = float("nan")
+    if not (np.isfinite(scale) and scale > 0):
+        raise ConfigError("VLR lidarsim/4 is not {\"intensity_scale\": <positive number>}",
+                          source=source, field="intensity_scale")
+    return scale
 
 
 def read_las(path: str | Path) -> "PointCloud":
