@@ -23,6 +23,10 @@ import numpy as np
 import pytest
 
 import lidarsim_core as ls
+from lidarsim_core.io.dialects import column_name
+from lidarsim_core.io.points import CloudPoints
+from lidarsim_core.io.write import write_points_file
+from lidarsim_core.plugins.resolve import exporter_for
 from lidarsim_core.plugins.shortcuts import write_cloud
 from lidarsim_core.records.pointcloud import POINT_FIELDS, PointCloud
 
@@ -58,7 +62,17 @@ def files(cloud, tmp_path_factory) -> dict[str, Path]:
     if importlib.util.find_spec("laspy") is None or importlib.util.find_spec("lazrs") is None:
         pytest.skip("laspy and lazrs are needed (extra 'las')")
     root = tmp_path_factory.mktemp("interop")
-    return {fmt: write_cloud(cloud, root / f"cloud.{fmt}") for fmt in FORMATS}
+    out = {fmt: write_cloud(cloud, root / f"cloud.{fmt}") for fmt in FORMATS}
+    # the PLY in CloudCompare's naming (scalar_<column>), for the same Python readers
+    path = root / "cloud-cc.ply"
+    write_points_file(CloudPoints(cloud), path, exporter_for(path,
+                                                             options={"dialect": "cloudcompare"}))
+    out["ply-cc"] = path
+    return out
+
+
+#: The PLY files and the dialect of their property names.
+PLY_DIALECTS = {"ply": "standard", "ply-cc": "cloudcompare"}
 
 
 def _float32(values: np.ndarray) -> np.ndarray:
@@ -112,17 +126,20 @@ def test_open3d_harness_reports_a_reader_abort(cloud, tmp_path):
 
 
 @needs_open3d
-def test_ply_read_by_open3d_legacy_and_tensor(cloud, files, tmp_path):
-    proc, data = _open3d_read(files["ply"], tmp_path)
-    _assert_read_cleanly(proc, files["ply"])
+@pytest.mark.parametrize("key", PLY_DIALECTS)
+def test_ply_read_by_open3d_legacy_and_tensor(cloud, files, tmp_path, key):
+    proc, data = _open3d_read(files[key], tmp_path)
+    _assert_read_cleanly(proc, files[key])
     np.testing.assert_array_equal(data["legacy_points"], cloud.xyz)
     np.testing.assert_array_equal(data["t_positions"], cloud.xyz)
     # every other column is kept by the tensor reader (none "unsupported datatype")
+    named = {n: column_name(n, PLY_DIALECTS[key]) for n in POINT_FIELDS}
     assert set(data) - {"legacy_points", "t_positions"} == {
-        f"t_{n}" for n in POINT_FIELDS if n not in "xyz"}
+        f"t_{named[n]}" for n in POINT_FIELDS if n not in "xyz"}
     for name in POINT_FIELDS:
         if name not in ("x", "y", "z"):
-            np.testing.assert_array_equal(data[f"t_{name}"][:, 0], cloud[name], err_msg=name)
+            np.testing.assert_array_equal(data[f"t_{named[name]}"][:, 0], cloud[name],
+                                          err_msg=name)
 
 
 @needs_open3d
@@ -150,13 +167,15 @@ def test_header_lines_are_short(files, fmt):
 
 
 # ---- plyfile and trimesh --------------------------------------------------------------------
-def test_ply_read_by_plyfile_with_names_and_metadata(cloud, files):
+@pytest.mark.parametrize("key", PLY_DIALECTS)
+def test_ply_read_by_plyfile_with_names_and_metadata(cloud, files, key):
     plyfile = pytest.importorskip("plyfile")
-    ply = plyfile.PlyData.read(str(files["ply"]))
+    ply = plyfile.PlyData.read(str(files[key]))
     vertex = ply["vertex"]
-    assert [p.name for p in vertex.properties] == list(POINT_FIELDS)
+    named = {n: column_name(n, PLY_DIALECTS[key]) for n in POINT_FIELDS}
+    assert [p.name for p in vertex.properties] == list(named.values())
     for name in POINT_FIELDS:
-        np.testing.assert_array_equal(vertex[name], cloud[name], err_msg=name)
+        np.testing.assert_array_equal(vertex[named[name]], cloud[name], err_msg=name)
     meta = "".join(c.split(" ", 1)[1] for c in ply.comments if c.startswith("lidarsim-frame "))
     assert json.loads(meta) == cloud.frame.to_dict()
     parts = [c.split(" ", 2) for c in ply.comments if c.startswith("lidarsim-part ")]
@@ -167,14 +186,16 @@ def test_ply_read_by_plyfile_with_names_and_metadata(cloud, files):
     assert targets == cloud.frame.target_names
 
 
-def test_ply_read_by_trimesh(cloud, files):
+@pytest.mark.parametrize("key", PLY_DIALECTS)
+def test_ply_read_by_trimesh(cloud, files, key):
     trimesh = pytest.importorskip("trimesh")
-    loaded = trimesh.load(str(files["ply"]))
+    loaded = trimesh.load(str(files[key]))
     assert isinstance(loaded, trimesh.PointCloud)
     np.testing.assert_array_equal(loaded.vertices, cloud.xyz)
     raw = loaded.metadata["_ply_raw"]["vertex"]["data"]
     for name in POINT_FIELDS:
-        np.testing.assert_array_equal(raw[name], cloud[name], err_msg=name)
+        np.testing.assert_array_equal(raw[column_name(name, PLY_DIALECTS[key])], cloud[name],
+                                      err_msg=name)
 
 
 # ---- laspy ----------------------------------------------------------------------------------
