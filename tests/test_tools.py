@@ -203,3 +203,19 @@ def test_pcl_typed_tools_need_the_pcd_float32_coordinates(files, tmp_path):
                            str(tmp_path / "d.pcd"), str(tmp_path / "e.pcd")],
                           capture_output=True, text=True, timeout=300)
     assert "Failed to find match for field 'x'" in proc.stdout + proc.stderr
+
+
+@pytest.mark.parametrize("suffix", [".las", ".pcd"])
+def test_cloudcompare_of_debian_opens_no_las_or_pcd(files, tmp_path, suffix):
+    """Debian's CloudCompare 2.11.3 is built without its LAS filter and its PCL plugin: it
+    refuses .las and .pcd by extension (docs/outputs.md sends those users to PLY)."""
+    need("CloudCompare", "xvfb-run")
+    path = tmp_path / f"c{suffix}"
+    if suffix == ".pcd":
+        path.write_bytes(files["pcd"].read_bytes())
+    else:
+        pytest.importorskip("laspy")
+        write_points_file(CloudPoints(ls.read(files["pcd"])), path, exporter_for(path))
+    proc = subprocess.run(["xvfb-run", "-a", "CloudCompare", "-SILENT", "-O", str(path)],
+                          capture_output=True, text=True, timeout=300)
+    assert f"unhandled file extension '{suffix[1:]}'" in proc.stdout + proc.stderr

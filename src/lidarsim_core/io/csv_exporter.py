@@ -44,8 +44,8 @@ class CsvOptions(ComponentOptions):
 
     dialect: Dialect = Field(
         "standard", description="Header row: 'standard' (the point-record names, for pandas "
-                                "and spreadsheets) or 'cloudcompare' (//x,y,z,scalar_<column>"
-                                "..., every column a named scalar field in CloudCompare).")
+                                "and spreadsheets) or 'cloudcompare' (//x,y,z,scalar_x_true,"
+                                "...: every column a named scalar field in CloudCompare).")
 
 
 class CsvExporter(Exporter):

@@ -55,7 +55,7 @@ class PcdOptions(ComponentOptions):
 
     xyz_dtype: Literal["float32", "float64"] = Field(
         "float32", description="Type of the measured x, y, z: float32 as PCL's point types "
-                               "(~10 µm steps at 100 m), or float64 for full precision.")
+                               "(rounded by ≤ 3.8 µm at 100 m), or float64 for full precision.")
 
 
 def pcd_layout(fields: dict[str, np.dtype], xyz_dtype: str = "float32"

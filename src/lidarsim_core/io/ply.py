@@ -120,8 +120,8 @@ class PlyOptions(ComponentOptions):
 
     dialect: Dialect = Field(
         "standard", description="Property names: 'standard' (the point-record names) or "
-                                "'cloudcompare' (scalar_<column>, loaded by CloudCompare as "
-                                "scalar fields).")
+                                "'cloudcompare' (each column but x, y, z prefixed 'scalar_', "
+                                "loaded by CloudCompare as scalar fields).")
 
 
 class PlyExporter(Exporter):
