@@ -106,3 +106,18 @@ def test_cli_dialect_flag(tmp_path):
     assert res.returncode == 2 and "dialect" in res.stderr
     assert len(res.stderr.strip().splitlines()) == 1
     assert not (tmp_path / "d.csv").exists()
+
+
+def test_standard_dialect_is_left_out_of_recorded_options():
+    """Dataset manifests record the exporter's options: the default dialect is not among
+    them, so a dataset written before the option existed keeps its identity and resumes
+    (tests/test_golden_outputs.py holds such a manifest)."""
+    from lidarsim_core.io.csv_exporter import CsvOptions
+    from lidarsim_core.io.ply import PlyOptions
+
+    for options in (PlyOptions, CsvOptions):
+        assert options().model_dump(mode="json") == {}
+        chosen = options(dialect="cloudcompare")
+        assert chosen.model_dump(mode="json") == {"dialect": "cloudcompare"}
+        assert options.model_validate(chosen.model_dump(mode="json")) == chosen
+        assert options.model_validate({}) == options()

@@ -3,8 +3,8 @@
 A header row names the columns (point-record order); floating-point values are written in
 Python's shortest round-trip form (``repr``), so parsing them gives back the same float64 bits;
 integers as integers. Plain RFC 4180 CSV with ``\\n`` line ends and no comment lines, so any
-reader (pandas, numpy, spreadsheets, CloudCompare's ASCII import with a header line) takes it;
-the frame metadata therefore lives only in the sidecar JSON.
+reader (pandas, numpy, spreadsheets) takes it; the frame metadata therefore lives only in the
+sidecar JSON.
 
 Option ``dialect: cloudcompare`` (CLI ``--dialect cloudcompare``) writes the header line as
 ``//x,y,z,scalar_x_true,...``: CloudCompare's ASCII loader reads column names only from a
@@ -22,10 +22,9 @@ import numpy as np
 
 from pydantic import Field
 
-from ..base.components import ComponentOptions
 from ..hookspecs import hookimpl
 from .base import Exporter
-from .dialects import CLOUDCOMPARE_HEADER, Dialect, column_name
+from .dialects import CLOUDCOMPARE_HEADER, Dialect, DialectOptions, column_name
 
 if TYPE_CHECKING:
     from .points import PointSource
@@ -39,7 +38,7 @@ def _texts(values: np.ndarray) -> list[str]:
     return [str(v) for v in values.tolist()]
 
 
-class CsvOptions(ComponentOptions):
+class CsvOptions(DialectOptions):
     """Options of the CSV exporter."""
 
     dialect: Dialect = Field(

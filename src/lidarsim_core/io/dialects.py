@@ -25,7 +25,11 @@ Open3D, plyfile, trimesh and pandas users index by.
 from __future__ import annotations
 
 from collections.abc import Iterable
-from typing import Literal
+from typing import Any, Literal
+
+from pydantic import SerializerFunctionWrapHandler, model_serializer
+
+from ..base.components import ComponentOptions
 
 #: Dialect names accepted by the ``dialect`` option of the PLY and CSV exporters.
 Dialect = Literal["standard", "cloudcompare"]
@@ -35,6 +39,21 @@ CLOUDCOMPARE_PREFIX = "scalar_"
 #: Start of a header line that CloudCompare's ASCII loader reads as column names.
 CLOUDCOMPARE_HEADER = "//"
 _COORDINATES = ("x", "y", "z")
+
+
+class DialectOptions(ComponentOptions):
+    """Base of the options of an exporter with a ``dialect`` (PLY, CSV; subclasses declare the
+    field). The standard dialect is left out of the options' dump, so that a dataset manifest
+    written before the option existed keeps its identity (and resumes)."""
+
+    dialect: Dialect = "standard"
+
+    @model_serializer(mode="wrap")
+    def _dump(self, handler: SerializerFunctionWrapHandler) -> Any:
+        data = handler(self)
+        if isinstance(data, dict) and data.get("dialect") == "standard":
+            data.pop("dialect")
+        return data
 
 
 def column_name(column: str, dialect: str) -> str:

@@ -42,11 +42,10 @@ import numpy as np
 
 from pydantic import Field
 
-from ..base.components import ComponentOptions
 from ..base.errors import ConfigError, OutputError
 from ..hookspecs import hookimpl
 from .base import Exporter
-from .dialects import Dialect, column_name, record_names
+from .dialects import Dialect, DialectOptions, column_name, record_names
 from .headermeta import metadata_from_lines, metadata_lines
 
 if TYPE_CHECKING:
@@ -115,7 +114,7 @@ def _names_comments(kind: str, names: list[str]) -> list[str]:
     return lines
 
 
-class PlyOptions(ComponentOptions):
+class PlyOptions(DialectOptions):
     """Options of the PLY exporter."""
 
     dialect: Dialect = Field(
