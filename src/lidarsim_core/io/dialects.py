@@ -12,8 +12,9 @@ its name, then from its values:
 - **CSV** (its ``AsciiFilter``): a header is read only from a first line that starts with
   ``//``; a column whose header contains ``SCALAR`` is a scalar field; other columns are
   guessed from their first values: three consecutive integer columns in 0..255 become red,
-  green, blue, three columns within ±1 become a normal, and ``intensity`` becomes a grey
-  colour. Scalar-field names show ``_`` as a space.
+  green, blue, three columns within ±1 become a normal, and a column headed ``intensity``
+  becomes a grey colour (dropped beside red, green, blue). Scalar-field names show ``_`` as a
+  space.
 
 The ``cloudcompare`` dialect therefore writes every column but x, y, z as
 ``scalar_<column>`` (CloudCompare's own naming: it saves a scalar field ``x true`` as
