@@ -10,8 +10,10 @@ Option ``dialect: cloudcompare`` (CLI ``--dialect cloudcompare``) writes the hea
 ``//x,y,z,scalar_x_true,...``: CloudCompare's ASCII loader reads column names only from a
 first line starting with ``//``, and loads a column as a scalar field only when its name
 contains ``scalar`` (otherwise it guesses from the values: small integers become colours,
-values within ±1 normals; :mod:`lidarsim_core.io.dialects`). ``ls.read`` takes both headers. Text is ~3x larger and much slower
-to write than the binary formats: use it for small clouds and inspection.
+values within ±1 normals; :mod:`lidarsim_core.io.dialects`). ``ls.read`` takes both headers.
+
+Text is ~3x larger and much slower to write than the binary formats: use it for small clouds
+and inspection.
 """
 
 from __future__ import annotations

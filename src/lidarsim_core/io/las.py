@@ -34,9 +34,9 @@ digits and spaces when it reads one: ``panel_right`` comes back as ``panelright`
 exact part names are also in VLR ``lidarsim``/2 and the target names in ``lidarsim``/3, as
 UTF-8 text with one name per line (part *i* on line *i*, class 64 + *i*). VLR ``lidarsim``/4
 holds the intensity scale as JSON, ``{"intensity_scale": s}``: ``Intensity × s`` is the
-apparent reflectivity within ``s / 2`` (1/131070 of the file's brightest return). The project GUID is
-derived from the configuration hash and the frame index; system identifier and generating
-software name lidarsim. The file creation day and year are written as 0 ("unknown"): a
+apparent reflectivity within ``s / 2`` (1/131070 of the file's brightest return). The project
+GUID is derived from the configuration hash and the frame index; system identifier and
+generating software name lidarsim. The file creation day and year are written as 0 ("unknown"): a
 regenerated frame is identical to the bit.
 
 laspy (and lazrs for LAZ) are imported only when a file is written.
