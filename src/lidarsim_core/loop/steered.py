@@ -1,0 +1,96 @@
+"""A steered body's path: the poses a session was given at its step boundaries, flown as a
+keyframe trajectory (linear positions, SLERP rotations: constant velocity and rotation rate
+over each step).
+
+The session's poses become a :class:`~lidarsim_core.trajectories.keyframes.KeyframeTrajectory`
+twice: during the loop, as :class:`SteeredTrajectory` over the last few keyframes only (a
+step's rays never look further back), and in the recorded keyframe file that ``lidarsim
+simulate`` replays over all of them. Both interpolate each step from its own two keyframes
+with the same arithmetic (NumPy's ``interp`` and the SLERP of the keyframe trajectory choose
+their interval by the same search, which the window of three keyframes keeps), so the
+replayed frames carry the loop's bits.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..trajectories.keyframes import Keyframe, KeyframeOptions, KeyframeTrajectory
+
+#: The interpolation the loop flies and its keyframe file asks for.
+INTERPOLATION = {"position_interpolation": "linear", "rotation_interpolation": "slerp",
+                 "extrapolate": "hold"}
+_OPTIONS = KeyframeOptions(keyframes=[Keyframe(t_s=0.0)], **INTERPOLATION)
+#: Keyframes a step's trajectory holds: the one before the step's start keeps the
+#: interval search of the whole recording on the step's first instant.
+WINDOW = 3
+
+
+class SteeredTrajectory(KeyframeTrajectory):
+    """The last :data:`WINDOW` keyframes of a steered body as a keyframe trajectory.
+
+    Built without validating options (the session checked every number): the same class,
+    interpolators and arithmetic as the keyframe trajectory that replays the recording.
+
+    Parameters
+    ----------
+    times
+        (K,) increasing keyframe times (s), K >= 2.
+    positions
+        (K, 3) positions (m).
+    rotations
+        K single rotations, each made by ``Rotation.from_quat`` of the recorded quaternion
+        (as the keyframe file's reader makes them).
+    """
+
+    def __init__(self, times: np.ndarray, positions: np.ndarray,
+                 rotations: list[Rotation]) -> None:  # noqa: D107 - documented on the class
+        self.options = _OPTIONS
+        self._where = ("<loop session>", "trajectory")
+        self._times = times
+        self._positions = positions
+        self._rotations = Rotation.concatenate(rotations)
+        self.is_static = False
+        self._slerp = None
+        self._build_interpolators()
+
+
+@dataclass
+class SteeredPath:
+    """Every keyframe a steered body was given: times (s), positions (m) and scalar-last
+    quaternions, with the rotations made from them."""
+
+    times: list[float] = field(default_factory=list)
+    positions: list[np.ndarray] = field(default_factory=list)
+    quaternions: list[np.ndarray] = field(default_factory=list)
+    rotations: list[Rotation] = field(default_factory=list)
+
+    def add(self, t: float, position: np.ndarray, quaternion_xyzw: np.ndarray) -> None:
+        """Append the pose at ``t`` (the rotation is made as the keyframe reader makes it)."""
+        q = np.asarray(quaternion_xyzw, dtype=np.float64).copy()
+        self.times.append(float(t))
+        self.positions.append(np.asarray(position, dtype=np.float64).copy())
+        self.quaternions.append(q)
+        self.rotations.append(Rotation.from_quat(q))
+
+    def trajectory(self) -> SteeredTrajectory:
+        """The trajectory of the newest step: its last :data:`WINDOW` keyframes."""
+        lo = max(0, len(self.times) - WINDOW)
+        return SteeredTrajectory(np.array(self.times[lo:]), np.array(self.positions[lo:]),
+                                 self.rotations[lo:])
+
+    def drop_last(self) -> None:
+        """Forget the newest keyframe (a step that failed)."""
+        for seq in (self.times, self.positions, self.quaternions, self.rotations):
+            seq.pop()
+
+    def csv_text(self) -> str:
+        """The keyframe file (``t_s,x_m,y_m,z_m,qx,qy,qz,qw``; every number as Python's
+        shortest repr, which reads back to the same bits)."""
+        lines = ["t_s,x_m,y_m,z_m,qx,qy,qz,qw"]
+        for t, p, q in zip(self.times, self.positions, self.quaternions):
+            lines.append(",".join(repr(float(v)) for v in (t, *p, *q)))
+        return "\n".join(lines) + "\n"
