@@ -34,6 +34,7 @@ from ..trajectories.attitude import LookAtAttitude
 from ..trajectories.base import Trajectory
 from ..trajectories.hcw import HCWTrajectory
 from .dynamics import propagate
+from .pointing import Pointing
 from .steered import SteeredPath
 
 _SOURCE = "<loop step>"
@@ -148,7 +149,9 @@ class LoopSession:
         hcw = traj if isinstance(traj, HCWTrajectory) else None
         self.mean_motion = mean_motion_rad_s if mean_motion_rad_s is not None else \
             (hcw.n if hcw is not None else None)
-        self.attitude = hcw.options.attitude if hcw is not None else LookAtAttitude()
+        #: The chaser's attitude law when a step gives no rotation (the ``hcw``
+        #: trajectory's, else boresight at the target's centre).
+        self.pointing = Pointing(hcw.options.attitude if hcw is not None else LookAtAttitude())
         t0 = np.array([self.start_s])
         self.steer_sensor = bool(steer_sensor)
         self.sensor_path: SteeredPath | None = None
@@ -299,7 +302,7 @@ class LoopSession:
                 raise ConfigError("the quaternion has zero norm", source=_SOURCE,
                                   field="quaternion_xyzw")
             return q
-        return self.attitude.rotations(position[None, :]).as_quat()[0]
+        return self.pointing.quaternion(position)
 
     def _scan(self, t0: float, t1: float) -> PointCloud:
         sim = self.simulation

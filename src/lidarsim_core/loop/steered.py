@@ -16,7 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial.transform import Rotation
+from scipy.spatial.transform import Rotation, Slerp
 
 from ..trajectories.keyframes import Keyframe, KeyframeOptions, KeyframeTrajectory
 
@@ -41,32 +41,43 @@ class SteeredTrajectory(KeyframeTrajectory):
         (K,) increasing keyframe times (s), K >= 2.
     positions
         (K, 3) positions (m).
-    rotations
-        K single rotations, each made by ``Rotation.from_quat`` of the recorded quaternion
-        (as the keyframe file's reader makes them).
+    unit_quaternions
+        (K, 4) the quaternions of the rotations ``Rotation.from_quat`` makes of the recorded
+        ones (as the keyframe file's reader makes them), taken as they are.
     """
 
     def __init__(self, times: np.ndarray, positions: np.ndarray,
-                 rotations: list[Rotation]) -> None:  # noqa: D107 - documented on the class
+                 unit_quaternions: np.ndarray) -> None:  # noqa: D107 - on the class
         self.options = _OPTIONS
         self._where = ("<loop session>", "trajectory")
         self._times = times
         self._positions = positions
-        self._rotations = Rotation.concatenate(rotations)
+        # Rotation.concatenate of the keyframes' rotations, without normalising them again
+        self._rotations = Rotation(unit_quaternions, normalize=False, copy=False)
         self.is_static = False
         self._slerp = None
-        self._build_interpolators()
+        self._slerp_fn: Slerp | None = None
+        # the keyframe trajectory's linear interpolation, the same expression
+        self._position_fn = lambda t: np.column_stack(
+            [np.interp(t, self._times, self._positions[:, i]) for i in range(3)])
+
+    @property
+    def _rotation_fn(self) -> Slerp:  # type: ignore[override]
+        # SciPy's Slerp, built on first use (frame metadata), once per step
+        if self._slerp_fn is None:
+            self._slerp_fn = Slerp(self._times, self._rotations)
+        return self._slerp_fn
 
 
 @dataclass
 class SteeredPath:
     """Every keyframe a steered body was given: times (s), positions (m) and scalar-last
-    quaternions, with the rotations made from them."""
+    quaternions, with the unit quaternions of the rotations made from them."""
 
     times: list[float] = field(default_factory=list)
     positions: list[np.ndarray] = field(default_factory=list)
     quaternions: list[np.ndarray] = field(default_factory=list)
-    rotations: list[Rotation] = field(default_factory=list)
+    unit_quaternions: list[np.ndarray] = field(default_factory=list)
 
     def add(self, t: float, position: np.ndarray, quaternion_xyzw: np.ndarray) -> None:
         """Append the pose at ``t`` (the rotation is made as the keyframe reader makes it)."""
@@ -74,17 +85,17 @@ class SteeredPath:
         self.times.append(float(t))
         self.positions.append(np.asarray(position, dtype=np.float64).copy())
         self.quaternions.append(q)
-        self.rotations.append(Rotation.from_quat(q))
+        self.unit_quaternions.append(Rotation.from_quat(q).as_quat())
 
     def trajectory(self) -> SteeredTrajectory:
         """The trajectory of the newest step: its last :data:`WINDOW` keyframes."""
         lo = max(0, len(self.times) - WINDOW)
         return SteeredTrajectory(np.array(self.times[lo:]), np.array(self.positions[lo:]),
-                                 self.rotations[lo:])
+                                 np.array(self.unit_quaternions[lo:]))
 
     def drop_last(self) -> None:
         """Forget the newest keyframe (a step that failed)."""
-        for seq in (self.times, self.positions, self.quaternions, self.rotations):
+        for seq in (self.times, self.positions, self.quaternions, self.unit_quaternions):
             seq.pop()
 
     def csv_text(self) -> str:
