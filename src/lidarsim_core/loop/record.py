@@ -11,17 +11,14 @@ directory. ``lidarsim simulate <record>.yaml --frame j`` gives step ``j``'s clou
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import yaml
 
 from ..base.atomic import write_text_atomic
 from ..base.errors import ConfigError
 from ..scenario.model import Scenario
-from .steered import INTERPOLATION
-
-if TYPE_CHECKING:  # the session imports this module when it records; types only
-    from .session import LoopSession
+from .steered import INTERPOLATION, SteeredPath
 
 
 def _absolute(scenario: Scenario, data: dict[str, Any]) -> None:
@@ -40,17 +37,19 @@ def _absolute(scenario: Scenario, data: dict[str, Any]) -> None:
             traj["file"] = str(scenario.resolve(Path(traj["file"])))
 
 
-def record_scenario(session: "LoopSession", keyframe_files: dict[str, str]) -> dict[str, Any]:
-    """The replay scenario of ``session`` as a mapping; ``keyframe_files`` maps ``sensor`` and
-    steered target names to their keyframe files (as the scenario should name them)."""
-    if session.frame == 0:
+def record_scenario(scenario: Scenario, *, start_s: float, dt: float | None, frames: int,
+                    keyframe_files: dict[str, str]) -> dict[str, Any]:
+    """The replay scenario of a session as a mapping: ``scenario`` with the steered bodies
+    flying ``keyframe_files`` (``sensor`` or a target's name → file, as the scenario should
+    name it) and one frame of ``dt`` per step from ``start_s`` (``dt`` None: the steps had
+    different lengths, which a scenario cannot hold)."""
+    if frames == 0:
         raise ConfigError("the session has no step to record", source="<loop record>",
                           field="steps")
-    if session.uniform_dt is None:
+    if dt is None:
         raise ConfigError("a scenario's frames are evenly spaced; this session's steps have "
                           "different lengths (the keyframe files are still exact)",
                           source="<loop record>", field="dt")
-    scenario = session.scenario
     data = scenario.model_dump(mode="json")
     _absolute(scenario, data)
     for body, file in keyframe_files.items():
@@ -58,23 +57,21 @@ def record_scenario(session: "LoopSession", keyframe_files: dict[str, str]) -> d
             next(t for t in data["targets"] if t["name"] == body)
         entry.pop("pose", None)
         entry["trajectory"] = {"kind": "keyframes", "file": file, **INTERPOLATION}
-    dt = session.uniform_dt
-    data["scan"] = {"duration_s": dt, "start_s": session.start_s, "frames": session.frame,
+    data["scan"] = {"duration_s": dt, "start_s": start_s, "frames": frames,
                     "frame_period_s": dt, "motion": scenario.scan.motion,
                     "body_frame_truth": scenario.scan.body_frame_truth}
     return data
 
 
-def write_record(session: "LoopSession", path: Path, *, overwrite: bool = True) -> Path:
-    """Write the keyframe files and the replay scenario (see :meth:`LoopSession.record`)."""
-    paths = {}
-    if session.sensor_path is not None:
-        paths["sensor"] = session.sensor_path
-    names = [t.name for t in session.simulation.context.targets]
-    for i, steered in session.target_paths.items():
-        paths[names[i]] = steered
+def write_record(path: Path, scenario: Scenario, paths: dict[str, SteeredPath], *,
+                 start_s: float, dt: float | None, frames: int, overwrite: bool = True
+                 ) -> Path:
+    """Write the keyframe files of the steered bodies (``paths``: ``sensor`` or a target's
+    name → its path) beside ``path`` and the replay scenario at ``path``; nothing is written
+    when the session cannot be recorded."""
     files = {body: f"{path.stem}.{body.replace('/', '_')}.csv" for body in paths}
-    data = record_scenario(session, files)  # checks first: nothing is written on an error
+    data = record_scenario(scenario, start_s=start_s, dt=dt, frames=frames,
+                           keyframe_files=files)
     for body, steered in paths.items():
         write_text_atomic(path.parent / files[body], steered.csv_text(), overwrite=overwrite)
     header = ("# The record of a closed-loop session (lidarsim_core.loop): replays its "

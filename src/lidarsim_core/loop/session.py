@@ -35,6 +35,7 @@ from ..trajectories.base import Trajectory
 from ..trajectories.hcw import HCWTrajectory
 from .dynamics import propagate
 from .pointing import Pointing
+from .record import write_record
 from .steered import SteeredPath
 
 _SOURCE = "<loop step>"
@@ -117,6 +118,9 @@ class LoopSession:
     mean_motion_rad_s
         Mean motion for Δv / acceleration commands (default: the orbit of the scenario's
         ``hcw`` sensor trajectory).
+    position_m, quaternion_xyzw
+        The chaser's pose at the start (default: its scenario trajectory's; the rotation
+        defaults to the attitude law at a given position).
     velocity_m_s
         The chaser's LVLH velocity at the start (default: the ``hcw`` trajectory's, else 0).
     chunk_rays
@@ -126,8 +130,9 @@ class LoopSession:
     def __init__(self, scenario: Scenario | Simulation | str | Path | Mapping[str, Any], *,
                  steer_sensor: bool = True, steer_targets: Sequence[str] = (),
                  seed: int | None = None, start_s: float | None = None,
-                 mean_motion_rad_s: float | None = None,
-                 velocity_m_s: Any = None, chunk_rays: int | None = None) -> None:
+                 mean_motion_rad_s: float | None = None, position_m: Any = None,
+                 quaternion_xyzw: Any = None, velocity_m_s: Any = None,
+                 chunk_rays: int | None = None) -> None:
         sim = scenario if isinstance(scenario, Simulation) else \
             Simulation(as_scenario(scenario))  # type: ignore[arg-type]
         self.simulation = sim
@@ -155,10 +160,19 @@ class LoopSession:
         t0 = np.array([self.start_s])
         self.steer_sensor = bool(steer_sensor)
         self.sensor_path: SteeredPath | None = None
+        if not self.steer_sensor and (position_m is not None or quaternion_xyzw is not None):
+            raise ConfigError("a start pose needs a steered sensor (steer_sensor=True)",
+                              source=_SOURCE, field="position_m")
         if self.steer_sensor:
             pose = traj.poses_at(t0)
+            p0, q0 = pose.position[0], pose.rotation.as_quat()[0]
+            if position_m is not None:
+                p0 = _vector(position_m, 3, "position_m")
+                q0 = self._quaternion(p0, quaternion_xyzw)
+            elif quaternion_xyzw is not None:
+                q0 = self._quaternion(p0, quaternion_xyzw)
             self.sensor_path = SteeredPath()
-            self.sensor_path.add(self.start_s, pose.position[0], pose.rotation.as_quat()[0])
+            self.sensor_path.add(self.start_s, p0, q0)
         if velocity_m_s is not None:
             self._velocity = _vector(velocity_m_s, 3, "velocity_m_s")
         elif hcw is not None:
@@ -335,6 +349,10 @@ class LoopSession:
         Path
             The scenario file.
         """
-        from .record import write_record
-
-        return write_record(self, Path(path), overwrite=overwrite)
+        paths: dict[str, SteeredPath] = {}
+        if self.sensor_path is not None:
+            paths["sensor"] = self.sensor_path
+        for i, steered in self.target_paths.items():
+            paths[self._targets[i].name] = steered
+        return write_record(Path(path), self.scenario, paths, start_s=self.start_s,
+                            dt=self.uniform_dt, frames=self.frame, overwrite=overwrite)
