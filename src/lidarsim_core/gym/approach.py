@@ -34,7 +34,7 @@ from gymnasium import spaces
 from ..loop.session import LoopSession, StepResult
 from ..pipeline.simulation import Simulation
 from ..scenario.load import as_scenario
-from .scenarios import vbar_approach
+from ..loop.scenarios import vbar_approach
 
 Info = dict[str, Any]
 

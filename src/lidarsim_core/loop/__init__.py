@@ -7,6 +7,7 @@
 """
 
 from .dynamics import hcw_forced, propagate
+from .scenarios import vbar_approach
 from .session import ChaserState, LoopSession, StepResult
 
-__all__ = ["ChaserState", "LoopSession", "StepResult", "hcw_forced", "propagate"]
+__all__ = ["ChaserState", "LoopSession", "StepResult", "hcw_forced", "propagate", "vbar_approach"]

@@ -18,6 +18,8 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
+from ..geometry.poses import Poses
+from ..geometry.posing import PoseMatrices
 from ..trajectories.keyframes import Keyframe, KeyframeOptions, KeyframeTrajectory
 
 #: The interpolation the loop flies and its keyframe file asks for.
@@ -60,13 +62,33 @@ class SteeredTrajectory(KeyframeTrajectory):
         # the keyframe trajectory's linear interpolation, the same expression
         self._position_fn = lambda t: np.column_stack(
             [np.interp(t, self._times, self._positions[:, i]) for i in range(3)])
+        self._memo: tuple[bytes, np.ndarray, Rotation] | None = None
 
     @property
     def _rotation_fn(self) -> Slerp:  # type: ignore[override]
-        # SciPy's Slerp, built on first use (frame metadata), once per step
+        # SciPy's Slerp, built on first use (frame metadata), once per step; the per-ray
+        # path (_slerp_matrices) reuses its relative rotations, the same expression
         if self._slerp_fn is None:
             self._slerp_fn = Slerp(self._times, self._rotations)
+            if self._slerp is None:
+                self._slerp = (self._rotations.as_quat(), np.asarray(self._slerp_fn.rotvecs),
+                               np.diff(self._times))
         return self._slerp_fn
+
+    def poses_at(self, t: np.ndarray) -> Poses:
+        """The keyframe trajectory's poses; the last answer is kept (a step asks for its
+        start and end twice: the inside check and the frame metadata)."""
+        t = np.atleast_1d(np.asarray(t, dtype=np.float64))
+        key = t.tobytes()
+        if self._memo is None or self._memo[0] != key:
+            poses = super().poses_at(t)
+            self._memo = (key, poses.position, poses.rotation)
+        return Poses(self._memo[1].copy(), self._memo[2])
+
+    def pose_matrices(self, t: np.ndarray) -> PoseMatrices:
+        """The keyframe trajectory's closed form (defined here too, beside ``poses_at``, so
+        that the pipeline keeps using it: :func:`~lidarsim_core.trajectories.matrices.has_fast_path`)."""
+        return super().pose_matrices(t)
 
 
 @dataclass

@@ -1,4 +1,4 @@
-"""The scenes the registered environments fly (plain mappings: scenario files in code)."""
+"""Ready-made closed-loop scenes (plain mappings: scenario files in code)."""
 
 from __future__ import annotations
 
