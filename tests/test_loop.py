@@ -253,3 +253,40 @@ def test_steered_target_is_recorded_and_replayed(tmp_path):
     assert (tmp_path / "t.envisat.csv").is_file()
     for frame, result in enumerate(results):
         assert_same_cloud(result.cloud, replay.run_frame(frame), same_hash=False)
+
+
+def test_the_keyframe_window_flies_the_recorded_path_to_the_bit(tmp_path):
+    """Over 200 steps of a random path, each step's three-keyframe window gives, at the rays'
+    times and at its start and end, the bits of the keyframe trajectory that reads the whole
+    recorded file (the replay's)."""
+    from lidarsim_core.loop.steered import INTERPOLATION, SteeredPath
+    from lidarsim_core.trajectories.keyframes import KeyframeTrajectory
+
+    rng = np.random.default_rng(12)
+    path = SteeredPath()
+    t = 0.0
+    turn = Rotation.from_rotvec(rng.normal(size=3))
+    for j in range(201):
+        path.add(t, rng.normal(0, 20, 3), turn.as_quat())
+        turn = Rotation.from_rotvec(rng.normal(0, 0.05, 3)) * turn
+        t = j * 0.1 + 0.1 if j % 3 else t + 0.07 * (1 + rng.random())
+    (tmp_path / "path.csv").write_text(path.csv_text())
+    full = KeyframeTrajectory.from_config({"file": str(tmp_path / "path.csv"), **INTERPOLATION})
+    times = path.times
+    window = SteeredPath()
+    for j in range(200):
+        window.add(times[j], path.positions[j], path.quaternions[j])
+        if j == 0:
+            continue
+        window.add(times[j + 1], path.positions[j + 1], path.quaternions[j + 1])
+        steered = window.trajectory()
+        t0, t1 = times[j], times[j + 1]
+        rays = np.r_[t0, np.sort(rng.uniform(t0, t1, 300))]
+        a, b = steered.pose_matrices(rays), full.pose_matrices(rays)
+        assert a.position.tobytes() == b.position.tobytes()
+        assert a.matrix.tobytes() == b.matrix.tobytes()
+        ends = np.array([t0, t1])
+        pa, pb = steered.poses_at(ends), full.poses_at(ends)
+        assert pa.position.tobytes() == pb.position.tobytes()
+        assert pa.rotation.as_quat().tobytes() == pb.rotation.as_quat().tobytes()
+        window.drop_last()
