@@ -70,6 +70,11 @@ def test_steps_on_the_scenario_trajectories_give_its_frames(approach_sim):
     for frame in range(3):
         assert_same_cloud(session.step().cloud, approach_sim.run_frame(frame))
     assert session.frame == 3 and session.time_s == pytest.approx(0.3)
+    # the state reported is the trajectory's: 2 m/s along the leg
+    velocity = session.state.velocity_m_s
+    assert np.linalg.norm(velocity) == pytest.approx(2.0)
+    np.testing.assert_allclose(velocity / 2.0, np.array([1.0, -10.0, 0.5]) /
+                               np.linalg.norm([1.0, -10.0, 0.5]), atol=1e-12)
 
 
 def test_steering_with_the_scenario_poses_gives_its_frames():

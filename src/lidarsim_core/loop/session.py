@@ -253,6 +253,7 @@ class LoopSession:
                 raise ConfigError("the session flies the scenario's sensor trajectory "
                                   "(steer_sensor=False): a step takes no chaser command",
                                   source=_SOURCE, field="step")
+            velocity = self._scenario_velocity(t0, t1)
         elif posed:
             if commanded:
                 raise ConfigError("give the chaser's pose or a Δv / acceleration, not both",
@@ -308,6 +309,15 @@ class LoopSession:
         self.time_s = t1
         self._velocity = np.asarray(velocity, dtype=np.float64)
         return StepResult(cloud, self.state)
+
+    def _scenario_velocity(self, t0: float, t1: float) -> np.ndarray:
+        """The unsteered chaser's velocity at ``t1``: the ``hcw`` trajectory's, else the mean
+        over the step."""
+        traj = self._sensor_trajectory
+        if isinstance(traj, HCWTrajectory):
+            return traj.states_at(np.array([t1]))[1][0]
+        p = traj.poses_at(np.array([t0, t1])).position
+        return (p[1] - p[0]) / (t1 - t0)
 
     def _quaternion(self, position: np.ndarray, quaternion: Any) -> np.ndarray:
         if quaternion is not None:
