@@ -176,7 +176,9 @@ class ApproachEnv(gymnasium.Env):
               ) -> tuple[dict[str, np.ndarray], Info]:
         """Start an episode: the start dispersion and the noise seed come from ``seed``."""
         super().reset(seed=seed)
-        start = self.simulation.context.sensor_trajectory.poses_at(np.zeros(1)).position[0]
+        ctx = self.simulation.context
+        t0 = np.array([ctx.scenario.scan.start_s])
+        start = ctx.sensor_trajectory.poses_at(t0).position[0]
         offset = self.np_random.normal(0.0, self.start_dispersion_m, size=3)
         noise_seed = int(self.np_random.integers(0, 2 ** 31 - 1))
         self.session = LoopSession(self.simulation, seed=noise_seed,
