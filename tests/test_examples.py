@@ -45,6 +45,15 @@ def test_example_runs(script, tmp_path):
                          "fig11_without_with_errors.png", "fig12_cloud_by_part.png",
                          "report.html"):
                 assert (out / name).stat().st_size > 10_000, name
+    elif script.name == "closed_loop_vbar.py":
+        # the short version (12 m -> 10 m): the loop closes on ICP estimates and holds
+        summary = dict(line.split(":") for line in res.stdout.splitlines()
+                       if line.strip().endswith(tuple("0123456789")) and ":" in line)
+        summary = {k.strip(): float(v) for k, v in summary.items() if "t =" not in k}
+        assert summary["hold_error_max_m"] < 0.5
+        assert summary["estimate_error_rms_m"] < 0.1 and summary["icp_failures"] == 0
+        assert (out / "closed_loop_vbar.png").stat().st_size > 10_000
+        assert (out / "loop.sensor.csv").is_file() and (out / "loop.yaml").is_file()
     elif script.name == "custom_datasheet.py":
         assert "as expected:" in res.stdout and "fov_h_deg" in res.stdout
         assert (out / "acme-rs1_box.ply").is_file()

@@ -23,16 +23,19 @@ from ..records.pointcloud import FrameInfo
 from .context import RunContext
 
 
-def frame_infos(ctx: RunContext, frames: Sequence[int], measurement: dict[str, Any]
-                ) -> list[FrameInfo]:
+def frame_infos(ctx: RunContext, frames: Sequence[int], measurement: dict[str, Any],
+                intervals: Sequence[tuple[float, float]] | None = None) -> list[FrameInfo]:
     """Metadata of ``frames`` of a run (what :meth:`Simulation.frame_info` gives for each);
     ``measurement`` is the simulation's description of its measurement model
-    (:meth:`Simulation.measurement_info`), the frames' ``extra``."""
+    (:meth:`Simulation.measurement_info`), the frames' ``extra``; ``intervals`` (one
+    ``(t_start, t_end)`` per frame) replace the scenario's frame intervals."""
     frames = [int(f) for f in frames]
     if not frames:
         return []
     scan = ctx.scenario.scan
-    intervals = [scan.frame_interval(f) for f in frames]
+    if intervals is None:
+        intervals = [scan.frame_interval(f) for f in frames]
+    intervals = [(float(a), float(b)) for a, b in intervals]
     # rows 2i and 2i + 1: frame i's start and end
     times = np.array([t for interval in intervals for t in interval], dtype=np.float64)
     sensor = ctx.sensor_trajectory.poses_at(times)

@@ -21,8 +21,10 @@ def _probe_directions() -> Any:
     return dirs / np.linalg.norm(dirs, axis=1, keepdims=True)
 
 
-def check_sensor_outside(ctx: RunContext, frame: int) -> None:
-    """Refuse a frame whose sensor is inside a closed target at the frame's start or end.
+def check_sensor_outside(ctx: RunContext, frame: int,
+                         interval: tuple[float, float] | None = None) -> None:
+    """Refuse a frame whose sensor is inside a closed target at the frame's start or end
+    (``interval``: the frame's ``(t_start, t_end)`` when it is not the scenario's).
 
     The sensor counts as inside when probe rays in 14 directions all hit the target and all
     hit the back (inner) side of a face first, which is only possible from inside a closed,
@@ -39,7 +41,7 @@ def check_sensor_outside(ctx: RunContext, frame: int) -> None:
     from ..base.errors import ConfigError
 
     scenario = ctx.scenario
-    t0, t1 = scenario.scan.frame_interval(frame)
+    t0, t1 = scenario.scan.frame_interval(frame) if interval is None else interval
     times = np.array([t0] if scenario.scan.motion == "frozen" else [t0, t1], dtype=np.float64)
     sensor_at = ctx.sensor_trajectory.poses_at(times).position
     dirs = _probe_directions()

@@ -167,12 +167,21 @@ class Simulation:
         (``LIDARSIM_THREADS``; one thread if the backend is not ``thread_safe``); every ray's
         result depends only on its index, so neither setting changes the output.
         """
+        yield from self.iter_span_chunks(
+            frame, *self.context.scenario.scan.frame_interval(frame), chunk_rays)
+
+    def iter_span_chunks(self, frame: int, t_start: float, t_end: float,
+                         chunk_rays: int | None = None) -> Iterator[dict[str, np.ndarray]]:
+        """:meth:`iter_chunks` of a frame numbered ``frame`` (its noise streams) that covers
+        ``[t_start, t_end)`` instead of the scenario's interval (the stepping API,
+        :mod:`lidarsim_core.loop`, scans intervals it is given; a scenario frame is this span
+        of its own interval, to the bit)."""
         ctx = self.context
-        check_sensor_outside(ctx, frame)
+        check_sensor_outside(ctx, frame, (t_start, t_end))
         chunk = chunk_rays or ctx.scenario.chunk_rays
-        k0, k1 = self.frame_rays(frame)
+        k0, k1 = ctx.pattern.frame_index_range(t_start, t_end)
         contexts = ctx.noise_contexts(frame)
-        t_frame = ctx.frame_start(frame)
+        t_frame = t_start
         for target in ctx.targets:  # build acceleration structures before the workers start
             ctx.backend.prepared(target.mesh)
         workers = worker_threads() if ctx.backend.thread_safe else 1
@@ -213,10 +222,12 @@ class Simulation:
         """Metadata of ``frame``: timing, poses at start and end, provenance."""
         return self.frame_infos([frame])[0]
 
-    def frame_infos(self, frames: Sequence[int]) -> list[FrameInfo]:
+    def frame_infos(self, frames: Sequence[int],
+                    intervals: Sequence[tuple[float, float]] | None = None) -> list[FrameInfo]:
         """:meth:`frame_info` of each of ``frames``, every trajectory evaluated once for all
-        (:mod:`lidarsim_core.pipeline.frameinfo`; the same bits as one frame at a time)."""
-        return frame_infos(self.context, frames, self.measurement_info())
+        (:mod:`lidarsim_core.pipeline.frameinfo`; the same bits as one frame at a time);
+        ``intervals`` replace the scenario's frame intervals (see :meth:`iter_span_chunks`)."""
+        return frame_infos(self.context, frames, self.measurement_info(), intervals)
 
     def measurement_info(self) -> dict[str, Any]:
         """The measurement model beyond the seed paper's, for frame metadata (empty when
