@@ -1,0 +1,136 @@
+"""A run of ``format: shards``: plan the shards, write the missing ones, finish the manifest.
+
+A shard is written whole and renamed into place (:func:`~.shards.run_shard_job`), so a shard
+file on disk is complete: a rerun skips it and writes the others (``--verify`` re-hashes the
+ones the manifest of a finished run lists). The final manifest lists every shard with its
+samples, size and SHA-256 and, per sequence, every frame's shard and key.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any, Iterator
+
+from ..base.atomic import atomic_output
+from ..base.errors import OutputError
+from ..io.sidecar import sha256_file
+from .executors import run_dask
+from .layout import MANIFEST, SPLITS, SPLITS_DIR
+from .manifest import read_manifest, write_manifest
+from .progress import FrameProgress
+from .sequence import SequenceRun
+from .shards import SHARDS_DIR, ShardFormat, ShardJob, plan_shards, run_shard_job, sample_key
+
+
+def _write_splits(root: Path, record: dict[str, Any], shards: list[tuple[str, list[Any]]]
+                  ) -> None:
+    text = json.dumps(record, indent=1, sort_keys=True) + "\n"
+    path = root / SPLITS
+    if not (path.is_file() and path.read_text(encoding="utf-8") == text):
+        with atomic_output(path) as stream:
+            stream.write(text.encode("utf-8"))
+    (root / SPLITS_DIR).mkdir(exist_ok=True)
+    for split in record["splits"]:
+        with atomic_output(root / SPLITS_DIR / f"{split}.txt") as stream:
+            for file, items in shards:
+                if file.startswith(f"{split}-"):
+                    for item in items:  # one line per sample: shard#key
+                        line = f"{SHARDS_DIR}/{file}#{sample_key(item.sequence, item.frame)}\n"
+                        stream.write(line.encode("utf-8"))
+
+
+def run_sharded(root: Path, sequences: list[SequenceRun], output: ShardFormat,
+                identity: dict[str, Any], summaries: list[dict[str, Any]],
+                assignment: dict[str, str], split_record: dict[str, Any] | None, *,
+                workers: int | None, scheduler: str | None, display: Any, verify: bool
+                ) -> tuple[int, int, int, int, float]:
+    """Write every shard not yet on disk, then the final manifest (see the module docstring).
+
+    Returns frames in the dataset, frames written, frames skipped, points simulated and the
+    elapsed time (s).
+    """
+    keys = [sample_key(s.plan.name, 0) for s in sequences]
+    if len(set(keys)) != len(keys):
+        raise OutputError("two sequence names give the same sample key (a '.' is written "
+                          "'_'): rename one", source=root, field="sequences")
+    order = [(s.plan.name, s.frames, assignment.get(s.plan.name)) for s in sequences]
+    shards = plan_shards(order, output.settings)
+    if split_record is not None:
+        _write_splits(root, split_record, shards)
+    scenarios = {s.plan.name: (json.dumps(s.data, sort_keys=True), str(s.copy_path))
+                 for s in sequences}
+    settings_json = output.settings.model_dump_json()
+    shard_dir = root / SHARDS_DIR
+    shard_dir.mkdir(exist_ok=True)
+    known: dict[str, str] = {}
+    if verify:
+        previous = read_manifest(root / MANIFEST) or {}
+        known = {s["file"]: s["sha256"] for s in previous.get("shards", [])}
+    done = []
+    for file, _ in shards:
+        path = shard_dir / file
+        ok = path.is_file()
+        if ok and verify and file in known:
+            ok = sha256_file(path) == known[file]
+        done.append(ok)
+    total = sum(s.frames for s in sequences)
+    skipped = sum(len(items) for (_, items), ok in zip(shards, done) if ok)
+
+    def jobs() -> Iterator[ShardJob]:
+        for (file, items), ok in zip(shards, done):
+            if not ok:
+                needed = {item.sequence for item in items}
+                yield ShardJob(str(shard_dir / file), tuple(items),
+                               {name: scenarios[name] for name in sorted(needed)},
+                               settings_json)
+
+    def on_result(result: dict[str, Any]) -> None:
+        for _ in range(result["samples"]):
+            progress.frame_done(result["points"] // max(1, result["samples"]))
+
+    try:
+        with FrameProgress(total - skipped, display=display, already=skipped) as progress:
+            if workers is None and scheduler is None:
+                for job in jobs():
+                    on_result(run_shard_job(job))
+            else:
+                run_dask(jobs(), on_result, workers=workers, scheduler=scheduler,
+                         task=run_shard_job)
+    except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM: say what is kept, and how to go on
+        kept = sum((shard_dir / file).is_file() for file, _ in shards)
+        raise type(exc)(f"{kept} of {len(shards)} shards are complete and kept in {root} "
+                        "(no partial shard); rerun the same command to resume") from None
+    entries = []
+    located: dict[tuple[str, int], tuple[str, str]] = {}
+    totals = {"frames": 0, "bytes": 0}
+    for file, items in shards:
+        path = shard_dir / file
+        if not path.is_file():
+            raise OutputError("shard missing after the run", source=path)
+        size = path.stat().st_size
+        runs: list[list[Any]] = []
+        for item in items:
+            located[(item.sequence, item.frame)] = (f"{SHARDS_DIR}/{file}",
+                                                    sample_key(item.sequence, item.frame))
+            if runs and runs[-1][0] == item.sequence and \
+                    runs[-1][1] + runs[-1][2] == item.frame:
+                runs[-1][2] += 1
+            else:
+                runs.append([item.sequence, item.frame, 1])
+        entries.append({"file": f"{SHARDS_DIR}/{file}", "split": items[0].split,
+                        "samples": len(items), "runs": runs, "bytes": size,
+                        "sha256": sha256_file(path)})
+        totals["frames"] += len(items)
+        totals["bytes"] += size
+
+    def frames_of(index: int) -> Iterator[dict[str, Any]]:
+        seq = sequences[index]
+        for frame in range(seq.frames):
+            file, key = located[(seq.plan.name, frame)]
+            yield {"frame": frame, "file": file, "key": key}
+
+    write_manifest(root / MANIFEST, identity=identity, sequences=summaries,
+                   splits=split_record, frames_of=frames_of, totals=totals,
+                   extra={"shards": entries})
+    return total, progress.written, skipped, progress.points, progress.elapsed
