@@ -321,3 +321,31 @@ def test_dask_workers_write_the_same_bytes(generated, tmp_path):
     out = tmp_path / "ds"
     generate_dataset(dataset_file(shards.parent), out, workers=2)
     assert tree(out) == tree(shards)
+
+
+# --- the tutorial (docs/training.md) --------------------------------------------------------
+
+def _tutorial_blocks() -> list[str]:
+    import re
+
+    text = (ROOT / "docs" / "training.md").read_text(encoding="utf-8")
+    return re.findall(r"```python\n(.*?)```", text, re.S)
+
+
+def test_tutorial_code_runs(generated, capsys):
+    shards, _ = generated
+    blocks = _tutorial_blocks()
+    assert len(blocks) == 3 and blocks[2].startswith("# example: pytorch")
+    namespace: dict = {"DATASET": shards}
+    for block in blocks[:2]:  # the reader and the NumPy training loop
+        exec(compile(block, "docs/training.md", "exec"), namespace)
+    out = capsys.readouterr().out
+    assert f"trained on {len(namespace['train'])} samples" in out
+    assert np.isfinite(namespace["w"]).all() and np.abs(namespace["w"]).sum() > 0
+    try:
+        import torch  # noqa: F401
+    except ImportError:
+        compile(blocks[2], "docs/training.md", "exec")  # shown, not a dependency: it parses
+    else:
+        namespace["range"] = lambda *a: iter([0])  # one epoch
+        exec(compile(blocks[2], "docs/training.md", "exec"), namespace)
