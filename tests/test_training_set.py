@@ -177,7 +177,10 @@ def test_samples_equal_the_frames_ls_read_and_poses_json_give(generated):
         np.testing.assert_array_equal(sample["false_alarm"][mask], cloud["target"][rows] < 0)
         body = np.column_stack([cloud["x_body"], cloud["y_body"], cloud["z_body"]])[rows]
         np.testing.assert_array_equal(sample["body"][mask], body)
-        poses = json.loads((seq_dir / "poses.json").read_text())["frames"][meta["frame"]]
+        poses = ds.poses(meta["sequence"])["frames"][meta["frame"]]
+        ply_poses = json.loads((seq_dir / "poses.json").read_text())["frames"][meta["frame"]]
+        assert poses["targets"] == ply_poses["targets"]
+        assert poses["cloud"] == f"{meta['sequence']}/{meta['frame']:06d}"
         truth = poses["targets"][0]
         np.testing.assert_allclose(sample["pose_quaternion"][0], truth["q_target_in_sensor"],
                                    rtol=0, atol=1e-12)
@@ -205,6 +208,10 @@ def test_shards_are_plain_tar_files_of_npy_members(generated):
     frames = sum(s["frame_count"] for s in manifest["sequences"])
     files = [s["file"] for s in manifest["shards"]]
     assert len(files) <= -(-frames // 4) + 2  # 4 frames per shard, split by split
+    # one shard per 4 frames (per split), and three files more: no file per sequence
+    every = sorted(p.relative_to(shards).as_posix() for p in shards.rglob("*")
+                   if p.is_file() and not p.name.startswith("."))
+    assert every == sorted(["manifest.json", "splits.json", "sequences.tar", *files])
     for entry in manifest["shards"]:
         with tarfile.open(shards / entry["file"]) as tar:
             names = tar.getnames()

@@ -80,7 +80,13 @@ from .manifest import read_manifest, write_manifest
 from .poses import PosesFile
 from .progress import FrameProgress
 from .sequence import SequenceRun
-from .sharded import run_sharded
+from .sharded import (
+    SEQUENCES_ARCHIVE,
+    archive_members,
+    run_sharded,
+    sharded_differences,
+    write_sequence_archive,
+)
 from .shards import SHARD_FORMAT, SHARD_SUFFIX, SHARDS_DIR, ShardFormat, sample_key
 from .splits import assign_splits, splits_record, trajectory_key
 
@@ -151,11 +157,13 @@ def _plan_for(source: Scenario | str | Path, frames: int | None,
 
 
 
-def _normalise(plan: DatasetPlan, root: Path, copier: InputCopier) -> list[SequenceRun]:
+def _normalise(plan: DatasetPlan, root: Path, copier: InputCopier, sharded: bool = False
+               ) -> list[SequenceRun]:
     registry = get_registry()
     out = []
     for seq in plan.sequences:
-        seq_root = sequence_root(root, seq.name, plan.multi)
+        # a sharded dataset keeps every sequence's files in one archive, relative to the root
+        seq_root = root if sharded else sequence_root(root, seq.name, plan.multi)
         normal = normalize_scenario(seq.scenario, registry)
         data = normal.model_dump(mode="json")
         copier.localize(normal, data, seq_root)
@@ -181,7 +189,8 @@ def _cloud_path(frame: int, suffix: str) -> str:
 def _prepare_sequence(seq: SequenceRun, suffix: str) -> None:
     from ..pipeline.simulation import Simulation
 
-    _write_text(seq.copy_path, yaml.safe_dump(seq.data, sort_keys=False))
+    if suffix != SHARD_SUFFIX:  # sharded: in the sequences archive
+        _write_text(seq.copy_path, yaml.safe_dump(seq.data, sort_keys=False))
     seq.scenario = scenario_from_dict(seq.data, source=seq.copy_path)
     sim = Simulation(seq.scenario)
     seq.frames = seq.scenario.scan.frames
@@ -379,9 +388,11 @@ def generate_dataset(source: Scenario | str | Path, out: str | Path, *,
         try:
             check_directory(root, manifest)
             copier = InputCopier(root)
-            sequences = _normalise(plan, root, copier)
+            sequences = _normalise(plan, root, copier, isinstance(exporter, ShardFormat))
             if manifest is not None:
-                lines = scenario_differences(root, sequences, manifest)
+                lines = sharded_differences(root, sequences, manifest) \
+                    if isinstance(exporter, ShardFormat) else \
+                    scenario_differences(root, sequences, manifest)
                 if lines:
                     copier.forget_created()
                     refuse(root, lines)
@@ -428,13 +439,20 @@ def _run(plan: DatasetPlan, root: Path, sequences: list[SequenceRun], exporter: 
     assignment, split_record = _splits(plan, sequences)
     summaries = [_sequence_summary(root, s, assignment.get(s.plan.name), bag, sharded)
                  for s in sequences]
+    if sharded:
+        for summary in summaries:
+            summary.update(root=SEQUENCES_ARCHIVE, **archive_members(summary["name"]))
     write_manifest(root / MANIFEST, identity=identity, sequences=summaries, splits=split_record)
+    if sharded:
+        write_sequence_archive(root, sequences)
     for seq in sequences:
         assert seq.poses is not None
+        if sharded:
+            continue
         seq.poses.save(seq.root / POSES)
         if not bag and not sharded:
             (seq.root / FRAMES_DIR).mkdir(parents=True, exist_ok=True)
-    if plan.multi:
+    if plan.multi and not sharded:  # sharded: the manifest holds every sequence's values
         _write_text(root / DATASET_COPY, _dataset_copy(plan, root, sequences, exp_id))
     if sharded:
         return DatasetResult(root, *run_sharded(root, sequences, exporter, identity, summaries,

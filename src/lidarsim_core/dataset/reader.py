@@ -20,10 +20,12 @@ from pathlib import Path
 from typing import IO, Any
 
 import numpy as np
+import yaml
 
 from ..base.errors import UserInputError
 from .layout import MANIFEST
 from .manifest import read_manifest
+from .sharded import archive_members, read_archive_member
 from .shards import sample_key
 
 
@@ -95,6 +97,22 @@ class TrainingSet:
         if "meta" not in out:
             raise UserInputError(f"sample {key} missing from its shard", source=self.root / shard)
         return out
+
+    def poses(self, sequence: str) -> dict[str, Any]:
+        """The ``poses.json`` of ``sequence`` (from ``sequences.tar``): the ground truth of
+        every frame, ``frames[i]["targets"][j]["q_target_in_sensor"]``..."""
+        return json.loads(self._archive(sequence, "poses"))
+
+    def scenario(self, sequence: str) -> dict[str, Any]:
+        """The normalised scenario ``sequence`` simulated, drawn values included."""
+        return yaml.safe_load(self._archive(sequence, "scenario"))
+
+    def _archive(self, sequence: str, what: str) -> bytes:
+        data = read_archive_member(self.root, archive_members(sequence)[what])
+        if data is None:
+            raise UserInputError(f"no {what} of sequence '{sequence}' in sequences.tar",
+                                 source=self.root)
+        return data
 
     def close(self) -> None:
         """Close the shard files this process opened."""

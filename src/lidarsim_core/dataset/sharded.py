@@ -8,36 +8,95 @@ samples, size and SHA-256 and, per sequence, every frame's shard and key.
 
 from __future__ import annotations
 
+import io
 import json
+import tarfile
 from pathlib import Path
 from typing import Any, Iterator
+
+import yaml
 
 from ..base.atomic import atomic_output
 from ..base.errors import OutputError
 from ..io.sidecar import sha256_file
 from .executors import run_dask
-from .layout import MANIFEST, SPLITS, SPLITS_DIR
+from .identity import differences
+from .layout import MANIFEST, POSES, SCENARIO_COPY, SPLITS
 from .manifest import read_manifest, write_manifest
 from .progress import FrameProgress
 from .sequence import SequenceRun
-from .shards import SHARDS_DIR, ShardFormat, ShardJob, plan_shards, run_shard_job, sample_key
+from .shards import (
+    SHARDS_DIR,
+    ShardFormat,
+    ShardJob,
+    add_member,
+    plan_shards,
+    run_shard_job,
+    sample_key,
+)
+
+#: The archive of every sequence's scenario copy and poses in a sharded dataset.
+SEQUENCES_ARCHIVE = "sequences.tar"
 
 
-def _write_splits(root: Path, record: dict[str, Any], shards: list[tuple[str, list[Any]]]
-                  ) -> None:
+def archive_members(name: str) -> dict[str, str]:
+    """Members of sequence ``name`` in :data:`SEQUENCES_ARCHIVE`: ``scenario`` and ``poses``."""
+    return {"scenario": f"{name}/{SCENARIO_COPY}", "poses": f"{name}/{POSES}"}
+
+
+def write_sequence_archive(root: Path, sequences: list[SequenceRun]) -> None:
+    """Write :data:`SEQUENCES_ARCHIVE` atomically (left alone if it already holds the same
+    bytes)."""
+    buffer = io.BytesIO()
+    with tarfile.open(fileobj=buffer, mode="w", format=tarfile.USTAR_FORMAT) as tar:
+        for seq in sequences:
+            assert seq.poses is not None
+            members = archive_members(seq.plan.name)
+            add_member(tar, members["scenario"],
+                       yaml.safe_dump(seq.data, sort_keys=False).encode("utf-8"))
+            add_member(tar, members["poses"], seq.poses.read_bytes())
+    data = buffer.getvalue()
+    path = root / SEQUENCES_ARCHIVE
+    if path.is_file() and path.read_bytes() == data:
+        return
+    with atomic_output(path) as stream:
+        stream.write(data)
+
+
+def read_archive_member(root: Path, member: str) -> bytes | None:
+    """The bytes of ``member`` of the dataset's :data:`SEQUENCES_ARCHIVE` (``None`` if it or
+    the archive is missing)."""
+    try:
+        with tarfile.open(root / SEQUENCES_ARCHIVE) as tar:
+            stream = tar.extractfile(member)
+            return stream.read() if stream is not None else None
+    except (OSError, KeyError, tarfile.TarError):
+        return None
+
+
+def sharded_differences(root: Path, sequences: list[SequenceRun], manifest: dict[str, Any]
+                        ) -> list[str]:
+    """What differs between the sequences of this run and those of the sharded dataset in
+    ``root`` (the counterpart of :func:`~.checks.scenario_differences`)."""
+    old_names = [s["name"] for s in manifest.get("identity", {}).get("sequences", [])]
+    new_names = [s.plan.name for s in sequences]
+    if old_names != new_names:
+        return [f"sequences: {old_names} → {new_names}"]
+    lines = []
+    for seq in sequences:
+        text = read_archive_member(root, archive_members(seq.plan.name)["scenario"])
+        old = yaml.safe_load(text) if text is not None else None
+        lines += [f"{seq.plan.name}: {line}" for line in differences(old, seq.data)]
+    return lines
+
+
+def _write_splits(root: Path, record: dict[str, Any]) -> None:
+    # no splits/*.txt: the shards are named by split, the manifest lists their samples
     text = json.dumps(record, indent=1, sort_keys=True) + "\n"
     path = root / SPLITS
     if not (path.is_file() and path.read_text(encoding="utf-8") == text):
         with atomic_output(path) as stream:
             stream.write(text.encode("utf-8"))
-    (root / SPLITS_DIR).mkdir(exist_ok=True)
-    for split in record["splits"]:
-        with atomic_output(root / SPLITS_DIR / f"{split}.txt") as stream:
-            for file, items in shards:
-                if file.startswith(f"{split}-"):
-                    for item in items:  # one line per sample: shard#key
-                        line = f"{SHARDS_DIR}/{file}#{sample_key(item.sequence, item.frame)}\n"
-                        stream.write(line.encode("utf-8"))
 
 
 def run_sharded(root: Path, sequences: list[SequenceRun], output: ShardFormat,
@@ -57,7 +116,7 @@ def run_sharded(root: Path, sequences: list[SequenceRun], output: ShardFormat,
     order = [(s.plan.name, s.frames, assignment.get(s.plan.name)) for s in sequences]
     shards = plan_shards(order, output.settings)
     if split_record is not None:
-        _write_splits(root, split_record, shards)
+        _write_splits(root, split_record)
     scenarios = {s.plan.name: (json.dumps(s.data, sort_keys=True), str(s.copy_path))
                  for s in sequences}
     settings_json = output.settings.model_dump_json()

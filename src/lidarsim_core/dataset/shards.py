@@ -3,10 +3,14 @@
 Layout::
 
     DIR/manifest.json                     identity, sequences (with drawn values), shards
-    DIR/sequences/<name>/scenario.yaml    as for per-frame datasets
-    DIR/sequences/<name>/poses.json       the ``cloud`` of each frame is its sample key
+    DIR/splits.json                       which sequence went to which split
+    DIR/sequences.tar                     <name>/scenario.yaml and <name>/poses.json of every
+                                          sequence (the ``cloud`` of a frame is its sample key)
     DIR/shards/train-000000.tar           at most ``shard_frames`` samples each
     DIR/shards/val-000000.tar ...
+
+so the directory holds one shard per ``shard_frames`` frames and four files more, however
+many sequences were drawn.
 
 Each sample is a run of tar members sharing a key, ``<sequence>/<frame>`` (the sequence name
 with ``.`` written ``_``): ``<key>.<array>.npy`` for every array of
@@ -127,7 +131,8 @@ def _simulation(scenario_json: str, source: str | None) -> Any:
     return sim
 
 
-def _add(tar: tarfile.TarFile, name: str, data: bytes) -> None:
+def add_member(tar: tarfile.TarFile, name: str, data: bytes) -> None:
+    """Add ``data`` as member ``name`` with fixed metadata (mtime 0, root, mode 0644)."""
     info = tarfile.TarInfo(name)
     info.size = len(data)
     info.mtime = 0
@@ -162,9 +167,9 @@ def write_samples(stream: IO[bytes], job: ShardJob) -> int:
                 layout = sim.pattern.name
             meta = sample_meta(cloud, sequence=item.sequence, split=item.split,
                                settings=settings, layout=layout)
-            _add(tar, f"{key}.json", json.dumps(meta, sort_keys=True).encode("utf-8"))
+            add_member(tar, f"{key}.json", json.dumps(meta, sort_keys=True).encode("utf-8"))
             for name in sorted(arrays):
-                _add(tar, f"{key}.{name}.npy", npy_bytes(arrays[name]))
+                add_member(tar, f"{key}.{name}.npy", npy_bytes(arrays[name]))
     return points
 
 
