@@ -356,3 +356,17 @@ def test_tutorial_code_runs(generated, capsys):
     else:
         namespace["range"] = lambda *a: iter([0])  # one epoch
         exec(compile(blocks[2], "docs/training.md", "exec"), namespace)
+
+
+def test_shards_without_samples_and_sequences_without_randomize_are_refused(tmp_path):
+    path = dataset_file(tmp_path, fmt="ply")
+    res = run_cli("dataset", str(path), "--out", str(tmp_path / "a"), "--quiet",
+                  "--format", "shards")
+    assert res.returncode == 2 and "samples" in res.stderr and str(path) in res.stderr
+    data = yaml.safe_load(path.read_text())
+    del data["sequences"][0]["randomize"], data["sequences"][0]["count"]
+    path.write_text(yaml.safe_dump(data))
+    res = run_cli("dataset", str(path), "--out", str(tmp_path / "b"), "--quiet",
+                  "--sequences", "3")
+    assert res.returncode == 2 and "randomize" in res.stderr
+    assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
