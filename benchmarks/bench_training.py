@@ -88,8 +88,8 @@ def layout(frames: int) -> None:
         every = [p for p in out.rglob("*") if p.is_file()]
         print(f"layout: {result.frames_total} frames in {result.elapsed_s:.1f} s, "
               f"{len(shards)} shard files ({len(shards) / result.frames_total * 1000:.2f} per "
-              f"1,000 frames), {len(every)} files in all (manifest, splits, and per sequence "
-              f"scenario.yaml + poses.json)")
+              f"1,000 frames), {len(every)} files in all (the shards, manifest.json, splits.json, "
+              f"sequences.tar and the hidden lock file)")
         assert len(ls.open_dataset(out, split=None)) == frames
 
 
