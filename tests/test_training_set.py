@@ -371,3 +371,14 @@ def test_shards_without_samples_and_sequences_without_randomize_are_refused(tmp_
                   "--sequences", "3")
     assert res.returncode == 2 and "randomize" in res.stderr
     assert not (tmp_path / "a").exists() and not (tmp_path / "b").exists()
+
+
+def test_range_images_of_a_sensor_without_layout_are_refused(tmp_path):
+    path = dataset_file(tmp_path)
+    data = yaml.safe_load(path.read_text())
+    data["sequences"][0]["set"] = {"sensor.datasheet": "livox-mid70-rose"}
+    path.write_text(yaml.safe_dump(data))
+    with pytest.raises(ConfigError, match="no regular layout") as err:
+        generate_dataset(path, tmp_path / "out")
+    assert err.value.field == "samples.range_image" and str(path) in str(err.value)
+    assert not (tmp_path / "out").exists()

@@ -252,9 +252,6 @@ def _dataset_copy(plan: DatasetPlan, root: Path, sequences: list[SequenceRun],
     data = {"sequences": entries, "splits": config.splits.model_dump(),
             "split_seed": config.split_seed, "format": exporter["name"],
             "exporter_options": exporter["options"]}
-    if exporter["name"] == SHARD_FORMAT:  # the sample settings are the output's options
-        data["exporter_options"] = {}
-        data["samples"] = exporter["options"]
     return yaml.safe_dump(data, sort_keys=False)
 
 
@@ -458,7 +455,7 @@ def _run(plan: DatasetPlan, root: Path, sequences: list[SequenceRun], exporter: 
         return DatasetResult(root, *run_sharded(root, sequences, exporter, identity, summaries,
                                                 assignment, split_record, workers=workers,
                                                 scheduler=scheduler, display=display,
-                                                verify=verify))
+                                                verify=verify, source=plan.source))
     if split_record is not None:
         _write_split_lists(root, sequences, assignment, split_record, suffix)
     if bag:

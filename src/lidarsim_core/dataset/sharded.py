@@ -17,7 +17,8 @@ from typing import Any, Iterator
 import yaml
 
 from ..base.atomic import atomic_output
-from ..base.errors import OutputError
+from ..base.errors import ConfigError, OutputError
+from ..io.rangeimage import has_layout
 from ..io.sidecar import sha256_file
 from .executors import run_dask
 from .identity import differences
@@ -102,8 +103,8 @@ def _write_splits(root: Path, record: dict[str, Any]) -> None:
 def run_sharded(root: Path, sequences: list[SequenceRun], output: ShardFormat,
                 identity: dict[str, Any], summaries: list[dict[str, Any]],
                 assignment: dict[str, str], split_record: dict[str, Any] | None, *,
-                workers: int | None, scheduler: str | None, display: Any, verify: bool
-                ) -> tuple[int, int, int, int, float]:
+                workers: int | None, scheduler: str | None, display: Any, verify: bool,
+                source: str | None = None) -> tuple[int, int, int, int, float]:
     """Write every shard not yet on disk, then the final manifest (see the module docstring).
 
     Returns frames in the dataset, frames written, frames skipped, points simulated and the
@@ -113,6 +114,13 @@ def run_sharded(root: Path, sequences: list[SequenceRun], output: ShardFormat,
     if len(set(keys)) != len(keys):
         raise OutputError("two sequence names give the same sample key (a '.' is written "
                           "'_'): rename one", source=root, field="sequences")
+    if output.settings.range_image:
+        for seq in sequences:
+            if not has_layout(seq.sim.pattern):
+                raise ConfigError(f"sequence {seq.plan.name}: scan pattern "
+                                  f"'{seq.sim.pattern.name}' has no regular layout: range "
+                                  "images exist for spinning, flash and raster sensors",
+                                  source=source, field="samples.range_image")
     order = [(s.plan.name, s.frames, assignment.get(s.plan.name)) for s in sequences]
     shards = plan_shards(order, output.settings)
     if split_record is not None:
