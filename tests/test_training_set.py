@@ -382,3 +382,38 @@ def test_range_images_of_a_sensor_without_layout_are_refused(tmp_path):
         generate_dataset(path, tmp_path / "out")
     assert err.value.field == "samples.range_image" and str(path) in str(err.value)
     assert not (tmp_path / "out").exists()
+
+
+def test_each_distribution_follows_its_law():
+    """Nine tests on one stream: each at p > 0.001 (Bonferroni for ~1 % over the family)."""
+    from pydantic import TypeAdapter
+
+    from lidarsim_core.dataset.randomize import Distribution
+
+    adapter = TypeAdapter(Distribution)
+    rng = np.random.default_rng(3)
+
+    def draws(spec, n=4000):
+        dist = adapter.validate_python(spec)
+        return [dist.draw(rng) for _ in range(n)]
+
+    direction = np.array(draws({"sphere": "uniform", "radius": 2.0}))
+    assert np.allclose(np.linalg.norm(direction, axis=1), 2.0)
+    assert stats.kstest(direction[:, 2] / 2, stats.uniform(-1, 2).cdf).pvalue > 0.001
+    azimuth = np.arctan2(direction[:, 1], direction[:, 0])
+    assert stats.kstest(azimuth, stats.uniform(-np.pi, 2 * np.pi).cdf).pvalue > 0.001
+    log = draws({"log_uniform": [0.1, 1000]})
+    assert stats.kstest(log, stats.loguniform(0.1, 1000).cdf).pvalue > 0.001
+    assert stats.kstest(log, stats.uniform(0.1, 999.9).cdf).pvalue < 1e-6  # not uniform
+    bounded = draws({"normal": [0, 1], "bounds": [-0.5, 2]})
+    assert stats.kstest(bounded, stats.truncnorm(-0.5, 2).cdf).pvalue > 0.001
+    integers = draws({"uniform": [0, 10], "integer": True, "bounds": [1, 9]})
+    assert set(integers) == set(range(1, 10)) and all(isinstance(v, int) for v in integers)
+    picks = draws({"choice": ["a", "b", "c"], "weights": [1, 2, 1]})
+    counts = [picks.count(v) for v in "abc"]
+    assert stats.chisquare(counts, np.array([1, 2, 1]) / 4 * len(picks)).pvalue > 0.001
+    assert stats.chisquare(counts, [len(picks) / 3] * 3).pvalue < 1e-6  # the weights matter
+    quats = np.array(draws({"so3": "uniform"}))
+    assert (quats[:, 3] >= 0).all()
+    assert stats.kstest(Rotation.from_quat(quats).magnitude(), haar_angle_cdf).pvalue > 0.001
+    assert draws({"vector": [{"choice": [7]}, 0, "x"]}, 1) == [[7, 0, "x"]]
