@@ -54,7 +54,12 @@ SCENE = {
 }
 
 
-def dataset_file(tmp_path: Path, *, fmt: str = "shards", count: int = 3, points: int = 2048,
+#: Points per sample of the small dataset: more than the far frames have (~9,000: padded),
+#: fewer than the near ones (~30,000: sampled).
+N = 16384
+
+
+def dataset_file(tmp_path: Path, *, fmt: str = "shards", count: int = 3, points: int = N,
                  sampling: str = "uniform", shard_frames: int = 4) -> Path:
     """A small randomised dataset file: a flash sensor (range images), Envisat 15–60 m."""
     (tmp_path / "scene.yaml").write_text(yaml.safe_dump(SCENE, sort_keys=False))
@@ -158,14 +163,17 @@ def test_samples_equal_the_frames_ls_read_and_poses_json_give(generated):
     ds = ls.open_dataset(shards, split=None)
     assert len(ds) == 6
     checked_pixels = 0
+    padded = 0
     for i in range(len(ds)):
         sample = ds[i]
         meta = sample["meta"]
         seq_dir = ply / "sequences" / meta["sequence"]
         cloud = ls.read(seq_dir / "frames" / f"frame_{meta['frame']:06d}.ply")
         mask = sample["mask"].astype(bool)
-        assert len(mask) == 2048 and sample["points"].shape == (2048, 3)
-        assert mask.sum() == min(len(cloud), 2048) and mask[:mask.sum()].all()
+        assert len(mask) == N and sample["points"].shape == (N, 3)
+        assert mask.sum() == min(len(cloud), N) and mask[:mask.sum()].all()
+        assert meta["points_in_frame"] == len(cloud)
+        padded += len(cloud) < N
         rows = sample["index"][mask]
         assert len(np.unique(rows)) == len(rows)
         np.testing.assert_array_equal(sample["points"][mask], cloud.xyz[rows])
@@ -200,6 +208,7 @@ def test_samples_equal_the_frames_ls_read_and_poses_json_give(generated):
                                    cloud["elevation"][image.point_index[hit]], atol=1e-12)
         assert np.isfinite(sample["range_azimuth"]).all()
     assert checked_pixels > 1000
+    assert 0 < padded < len(ds)  # both padded and sampled frames were checked
 
 
 def test_shards_are_plain_tar_files_of_npy_members(generated):
