@@ -294,6 +294,14 @@ def test_rerun_is_a_no_op_and_a_changed_draw_is_refused(generated, tmp_path):
     path = dataset_file(shards.parent)
     result = generate_dataset(path, shards)
     assert result.frames_written == 0 and tree(shards) == before
+    # a damaged shard is found by --verify (its checksum in the manifest) and written again
+    victim = sorted((shards / "shards").glob("*.tar"))[-1]
+    data = bytearray(victim.read_bytes())
+    data[1000] ^= 0xFF
+    victim.write_bytes(bytes(data))
+    assert generate_dataset(path, shards).frames_written == 0  # without --verify: trusted
+    result = generate_dataset(path, shards, verify=True)
+    assert result.frames_written > 0 and tree(shards) == before
     data = yaml.safe_load(path.read_text())
     data["seed"] = 6  # other draws: another dataset
     other = tmp_path / "other.yaml"

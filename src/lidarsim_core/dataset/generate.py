@@ -455,7 +455,8 @@ def _run(plan: DatasetPlan, root: Path, sequences: list[SequenceRun], exporter: 
         return DatasetResult(root, *run_sharded(root, sequences, exporter, identity, summaries,
                                                 assignment, split_record, workers=workers,
                                                 scheduler=scheduler, display=display,
-                                                verify=verify, source=plan.source))
+                                                verify=verify, source=plan.source,
+                                                previous=manifest))
     if split_record is not None:
         _write_split_lists(root, sequences, assignment, split_record, suffix)
     if bag:

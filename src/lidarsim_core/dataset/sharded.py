@@ -23,7 +23,7 @@ from ..io.sidecar import sha256_file
 from .executors import run_dask
 from .identity import differences
 from .layout import MANIFEST, POSES, SCENARIO_COPY, SPLITS
-from .manifest import read_manifest, write_manifest
+from .manifest import write_manifest
 from .progress import FrameProgress
 from .sequence import SequenceRun
 from .shards import (
@@ -104,10 +104,12 @@ def run_sharded(root: Path, sequences: list[SequenceRun], output: ShardFormat,
                 identity: dict[str, Any], summaries: list[dict[str, Any]],
                 assignment: dict[str, str], split_record: dict[str, Any] | None, *,
                 workers: int | None, scheduler: str | None, display: Any, verify: bool,
-                source: str | None = None) -> tuple[int, int, int, int, float]:
+                source: str | None = None, previous: dict[str, Any] | None = None
+                ) -> tuple[int, int, int, int, float]:
     """Write every shard not yet on disk, then the final manifest (see the module docstring).
 
-    Returns frames in the dataset, frames written, frames skipped, points simulated and the
+    ``previous`` is the manifest found when the run started: with ``verify``, every shard it
+    lists is re-hashed and written again if it differs. Returns frames in the dataset, frames written, frames skipped, points simulated and the
     elapsed time (s).
     """
     keys = [sample_key(s.plan.name, 0) for s in sequences]
@@ -130,16 +132,16 @@ def run_sharded(root: Path, sequences: list[SequenceRun], output: ShardFormat,
     settings_json = output.settings.model_dump_json()
     shard_dir = root / SHARDS_DIR
     shard_dir.mkdir(exist_ok=True)
-    known: dict[str, str] = {}
-    if verify:
-        previous = read_manifest(root / MANIFEST) or {}
-        known = {s["file"]: s["sha256"] for s in previous.get("shards", [])}
+    # checksums taken when each shard was written: the manifest found when the run started
+    # (a finished run's lists its shards), then this run's results
+    known = {s["file"]: s["sha256"] for s in (previous or {}).get("shards", [])}
     done = []
     for file, _ in shards:
         path = shard_dir / file
         ok = path.is_file()
-        if ok and verify and file in known:
-            ok = sha256_file(path) == known[file]
+        listed = known.get(f"{SHARDS_DIR}/{file}")
+        if ok and verify and listed is not None:
+            ok = sha256_file(path) == listed
         done.append(ok)
     total = sum(s.frames for s in sequences)
     skipped = sum(len(items) for (_, items), ok in zip(shards, done) if ok)
@@ -153,6 +155,7 @@ def run_sharded(root: Path, sequences: list[SequenceRun], output: ShardFormat,
                                settings_json)
 
     def on_result(result: dict[str, Any]) -> None:
+        known[f"{SHARDS_DIR}/{result['file']}"] = result["sha256"]
         for _ in range(result["samples"]):
             progress.frame_done(result["points"] // max(1, result["samples"]))
 
@@ -187,7 +190,7 @@ def run_sharded(root: Path, sequences: list[SequenceRun], output: ShardFormat,
                 runs.append([item.sequence, item.frame, 1])
         entries.append({"file": f"{SHARDS_DIR}/{file}", "split": items[0].split,
                         "samples": len(items), "runs": runs, "bytes": size,
-                        "sha256": sha256_file(path)})
+                        "sha256": known.get(f"{SHARDS_DIR}/{file}") or sha256_file(path)})
         totals["frames"] += len(items)
         totals["bytes"] += size
 
