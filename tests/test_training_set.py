@@ -221,12 +221,18 @@ def test_shards_are_plain_tar_files_of_npy_members(generated):
     every = sorted(p.relative_to(shards).as_posix() for p in shards.rglob("*")
                    if p.is_file() and not p.name.startswith("."))
     assert every == sorted(["manifest.json", "splits.json", "sequences.tar", *files])
+    members: dict[str, set[str]] = {}
     for entry in manifest["shards"]:
         with tarfile.open(shards / entry["file"]) as tar:
             names = tar.getnames()
         keys = {n.rsplit("/", 1)[0] + "/" + n.rsplit("/", 1)[1].split(".")[0] for n in names}
         assert len(keys) == entry["samples"]
         assert all(n.endswith((".npy", ".json")) for n in names)
+        members[entry["file"]] = set(names)
+    for seq in manifest["sequences"]:  # every frame's entry names the shard that holds it
+        assert [f["frame"] for f in seq["frames"]] == list(range(seq["frame_count"]))
+        for f in seq["frames"]:
+            assert f"{f['key']}.points.npy" in members[f["file"]]
 
 
 def test_padding_and_farthest_point_sampling():

@@ -34,6 +34,7 @@ from .shards import (
     plan_shards,
     run_shard_job,
     sample_key,
+    shard_name,
 )
 
 #: The archive of every sequence's scenario copy and poses in a sharded dataset.
@@ -109,8 +110,8 @@ def run_sharded(root: Path, sequences: list[SequenceRun], output: ShardFormat,
     """Write every shard not yet on disk, then the final manifest (see the module docstring).
 
     ``previous`` is the manifest found when the run started: with ``verify``, every shard it
-    lists is re-hashed and written again if it differs. Returns frames in the dataset, frames written, frames skipped, points simulated and the
-    elapsed time (s).
+    lists is re-hashed and written again if it differs. Returns frames in the dataset, frames
+    written, frames skipped, points simulated and the elapsed time (s).
     """
     keys = [sample_key(s.plan.name, 0) for s in sequences]
     if len(set(keys)) != len(keys):
@@ -156,8 +157,8 @@ def run_sharded(root: Path, sequences: list[SequenceRun], output: ShardFormat,
 
     def on_result(result: dict[str, Any]) -> None:
         known[f"{SHARDS_DIR}/{result['file']}"] = result["sha256"]
-        for _ in range(result["samples"]):
-            progress.frame_done(result["points"] // max(1, result["samples"]))
+        for i in range(result["samples"]):  # the shard's points count once
+            progress.frame_done(result["points"] if i == 0 else 0)
 
     try:
         with FrameProgress(total - skipped, display=display, already=skipped) as progress:
@@ -172,7 +173,6 @@ def run_sharded(root: Path, sequences: list[SequenceRun], output: ShardFormat,
         raise type(exc)(f"{kept} of {len(shards)} shards are complete and kept in {root} "
                         "(no partial shard); rerun the same command to resume") from None
     entries = []
-    located: dict[tuple[str, int], tuple[str, str]] = {}
     totals = {"frames": 0, "bytes": 0}
     for file, items in shards:
         path = shard_dir / file
@@ -181,8 +181,6 @@ def run_sharded(root: Path, sequences: list[SequenceRun], output: ShardFormat,
         size = path.stat().st_size
         runs: list[list[Any]] = []
         for item in items:
-            located[(item.sequence, item.frame)] = (f"{SHARDS_DIR}/{file}",
-                                                    sample_key(item.sequence, item.frame))
             if runs and runs[-1][0] == item.sequence and \
                     runs[-1][1] + runs[-1][2] == item.frame:
                 runs[-1][2] += 1
@@ -194,11 +192,20 @@ def run_sharded(root: Path, sequences: list[SequenceRun], output: ShardFormat,
         totals["frames"] += len(items)
         totals["bytes"] += size
 
+    # where each sequence starts in its split's run of frames (constant memory per frame)
+    offsets: dict[str, tuple[str, int]] = {}
+    filled: dict[str, int] = {}
+    for name, frames, split in order:
+        offsets[name] = (split or "all", filled.get(split or "all", 0))
+        filled[split or "all"] = offsets[name][1] + frames
+    size = output.settings.shard_frames
+
     def frames_of(index: int) -> Iterator[dict[str, Any]]:
         seq = sequences[index]
+        split, offset = offsets[seq.plan.name]
         for frame in range(seq.frames):
-            file, key = located[(seq.plan.name, frame)]
-            yield {"frame": frame, "file": file, "key": key}
+            file = f"{SHARDS_DIR}/{shard_name(split, (offset + frame) // size)}"
+            yield {"frame": frame, "file": file, "key": sample_key(seq.plan.name, frame)}
 
     write_manifest(root / MANIFEST, identity=identity, sequences=summaries,
                    splits=split_record, frames_of=frames_of, totals=totals,
