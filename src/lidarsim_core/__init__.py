@@ -29,6 +29,7 @@ if TYPE_CHECKING:  # pragma: no cover - for type checkers and IDEs only
         PluginError,
         UserInputError,
     )
+    from .dataset.reader import open_dataset
     from .io.reader import read
     from .pipeline.simulation import Simulation, simulate
     from .plugins.manager import get_registry
@@ -54,6 +55,7 @@ _LAZY: dict[str, str] = {
     "Scenario": "scenario.model", "load_scenario": "scenario.load",
     "Simulation": "pipeline.simulation", "simulate": "pipeline.simulation",
     "read": "io.reader",
+    "open_dataset": "dataset.reader",
 }
 #: Names whose objects carry or return point clouds: the plugins layer attaches
 #: ``PointCloud.save`` and ``PointCloud.range_image`` (:mod:`.plugins.shortcuts`) first.

@@ -21,7 +21,8 @@ def dataset(source: Path = typer.Argument(..., help="Scenario file, or a dataset
                                                  "(default: the scenario's scan.frames)."),
             fmt: Optional[str] = typer.Option(None, "--format", help="Exporter: ply (default), "
                                               "las, laz, pcd, npz, csv, a plugin's, or mcap "
-                                              "(one ROS 2 bag per sequence)."),
+                                              "(one ROS 2 bag per sequence), or shards "
+                                              "(training samples in tar shards)."),
             workers: Optional[int] = typer.Option(None, min=1, help="Run on a local Dask "
                                                   "cluster of this many processes."),
             scheduler: Optional[str] = typer.Option(None, help="Run on the Dask cluster at "
@@ -32,15 +33,18 @@ def dataset(source: Path = typer.Argument(..., help="Scenario file, or a dataset
                                        "summary."),
             livox: bool = typer.Option(False, "--livox", help="With --format mcap: also write "
                                        "livox_ros_driver2/msg/CustomMsg on /livox/lidar."),
+            sequences: Optional[int] = typer.Option(None, "--sequences", min=1,
+                                                    help="Sequences drawn from every "
+                                                    "randomised entry of the dataset file."),
             ) -> None:
     """Generate a dataset: one file per frame, poses, manifest with checksums, splits."""
     run_guarded(lambda: _dataset(source, out, frames, fmt, workers, scheduler, verify, quiet,
-                                  livox))
+                                  livox, sequences))
 
 
 def _dataset(source: Path, out: Path, frames: int | None, fmt: str | None,
              workers: int | None, scheduler: str | None, verify: bool, quiet: bool,
-             livox: bool = False) -> None:
+             livox: bool = False, sequences: int | None = None) -> None:
     from ..base.errors import ConfigError
     from ..base.limits import check_frames
     from ..dataset import generate_dataset
@@ -52,7 +56,7 @@ def _dataset(source: Path, out: Path, frames: int | None, fmt: str | None,
         check_frames(frames, source=None, field="--frames")
     result = generate_dataset(source, out, frames=frames, format=fmt, workers=workers,
                               scheduler=scheduler, quiet=quiet, verify=verify,
-                              livox=livox, display=FrameBar())
+                              livox=livox, display=FrameBar(), sequences=sequences)
     if quiet:
         return
     rate = result.frames_written / result.elapsed_s if result.elapsed_s > 0 else 0.0

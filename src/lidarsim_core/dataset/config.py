@@ -37,6 +37,8 @@ from ..base.limits import MAX_SEED
 from ..base.validation import validate_model
 from ..scenario.load import scenario_from_dict
 from ..scenario.model import Scenario
+from .randomize import Distribution, draw_values, sequence_rng
+from .samples import SampleSettings
 
 SPLIT_NAMES = ("train", "val", "test")
 _NAME_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_.-]*$")
@@ -61,11 +63,20 @@ class SequenceSpec(_Strict):
     split: Literal["train", "val", "test"] | None = Field(None, description="Pin a split.")
     group: str | None = Field(None, description="Trajectory group (default: sequences with "
                                                 "the same trajectories form a group).")
+    randomize: dict[str, Distribution] = Field(
+        default_factory=dict, description="Dotted path → distribution, drawn per sequence "
+                                          "from the dataset's seed (dataset.randomize).")
+    count: int | None = Field(None, ge=1, le=10_000_000,
+                              description="Sequences drawn from this randomised entry.")
 
     @model_validator(mode="after")
     def _seed_or_seeds(self) -> "SequenceSpec":
         if self.seed is not None and self.seeds is not None:
             raise ValueError("give either 'seed' or 'seeds', not both")
+        if self.count is not None and not self.randomize:
+            raise ValueError("'count' needs 'randomize'")
+        if self.randomize and self.seeds is not None:
+            raise ValueError("give either 'randomize' or 'seeds', not both")
         if self.name is not None and not _NAME_RE.match(self.name):
             raise ValueError("name may hold letters, digits, '_', '-' and '.' only")
         return self
@@ -94,6 +105,10 @@ class DatasetConfig(_Strict):
     format: str | None = Field(None, description="Exporter name (default: ply).")
     exporter_options: dict[str, Any] = Field(default_factory=dict,
                                              description="Options of the exporter.")
+    seed: int = Field(0, ge=0, le=2 ** 63 - 1,
+                      description="Seed of every randomised draw (dataset.randomize).")
+    samples: SampleSettings | None = Field(
+        None, description="Training samples of format 'shards' (dataset.samples).")
 
 
 @dataclass
@@ -104,6 +119,7 @@ class SequencePlan:
     scenario: Scenario
     split: str | None = None
     group: str | None = None
+    drawn: dict[str, Any] | None = None
 
 
 @dataclass
@@ -185,7 +201,8 @@ def is_dataset_file(data: dict[str, Any]) -> bool:
     return "sequences" in data
 
 
-def load_plan(path: str | Path, *, frames: int | None = None) -> DatasetPlan:
+def load_plan(path: str | Path, *, frames: int | None = None,
+              sequences: int | None = None) -> DatasetPlan:
     """Read a scenario or dataset file into a :class:`DatasetPlan`.
 
     Parameters
@@ -194,6 +211,8 @@ def load_plan(path: str | Path, *, frames: int | None = None) -> DatasetPlan:
         A scenario file (one sequence) or a dataset file (``sequences:`` list).
     frames
         Override the number of frames of every sequence.
+    sequences
+        Override the ``count`` of every randomised entry (``lidarsim dataset --sequences``).
 
     Raises
     ------
@@ -206,8 +225,15 @@ def load_plan(path: str | Path, *, frames: int | None = None) -> DatasetPlan:
         scenario = scenario_variant(data, source=path, frames=frames, where=str(path))
         return DatasetPlan([SequencePlan(path.stem, scenario)], str(path))
     config = validate_model(DatasetConfig, data, source=path)
-    sequences: list[SequencePlan] = []
+    if sequences is not None and not any(spec.randomize for spec in config.sequences):
+        raise ConfigError("--sequences needs an entry with 'randomize'", source=path,
+                          field="sequences")
+    # body-frame samples need the body-frame columns
+    forced = {"scan.body_frame_truth": True} \
+        if config.samples is not None and config.samples.body_frame else {}
+    plans: list[SequencePlan] = []
     for i, spec in enumerate(config.sequences):
+        spec = spec.model_copy(update={"set": {**forced, **spec.set}})
         file = spec.scenario if spec.scenario.is_absolute() else path.parent / spec.scenario
         field = f"sequences.{i}"
         try:
@@ -215,16 +241,48 @@ def load_plan(path: str | Path, *, frames: int | None = None) -> DatasetPlan:
         except ConfigError as exc:
             raise ConfigError(exc.message, source=path, field=f"{field}.scenario") from None
         base = spec.name or file.stem
+        if spec.randomize:
+            plans += _drawn_sequences(spec, raw, file, base, config.seed, i, path,
+                                      frames=frames or spec.frames,
+                                      count=sequences or spec.count or 1)
+            continue
         seeds = spec.seeds if spec.seeds is not None else [spec.seed]
         for seed in seeds:
             name = f"{base}_s{seed}" if spec.seeds is not None else base
             scenario = scenario_variant(raw, source=file, seed=seed,
                                         frames=frames or spec.frames, updates=spec.set,
                                         where=str(path), field=f"{field}.set")
-            sequences.append(SequencePlan(name, scenario, spec.split, spec.group))
-    names = [s.name for s in sequences]
+            plans.append(SequencePlan(name, scenario, spec.split, spec.group))
+    names = [s.name for s in plans]
     repeated = sorted({n for n in names if names.count(n) > 1})
     if repeated:
         raise ConfigError(f"sequence names must be unique; repeated: {', '.join(repeated)} "
                           "(give each entry a 'name')", source=path, field="sequences")
-    return DatasetPlan(sequences, str(path), config)
+    return DatasetPlan(plans, str(path), config)
+
+
+#: Digits of the draw number in the names of randomised sequences (``name_r0007``).
+DRAW_DIGITS = 4
+
+
+def _drawn_sequences(spec: SequenceSpec, raw: dict[str, Any], file: Path, base: str,
+                     dataset_seed: int, entry: int, path: Path, *, frames: int | None,
+                     count: int) -> list[SequencePlan]:
+    """The ``count`` sequences of a randomised entry, each with its drawn values."""
+    field = f"sequences.{entry}"
+    out = []
+    for k in range(count):
+        try:
+            drawn = draw_values(spec.randomize, sequence_rng(dataset_seed, entry, k),
+                                draw_seed=spec.seed is None)
+        except ValueError as exc:
+            raise ConfigError(str(exc), source=path, field=f"{field}.randomize") from None
+        seed = drawn.pop("seed", spec.seed)
+        updates = {**spec.set, **drawn}
+        scenario = scenario_variant(raw, source=file, seed=seed, frames=frames,
+                                    updates=updates, where=str(path), field=f"{field}.set")
+        if seed is not None and spec.seed is None:
+            drawn["seed"] = seed
+        out.append(SequencePlan(f"{base}_r{k:0{DRAW_DIGITS}d}", scenario, spec.split,
+                                spec.group, drawn))
+    return out

@@ -179,8 +179,9 @@ def local_cluster(workers: int) -> Iterator[Any]:
         yield cluster
 
 
-def run_dask(jobs: Iterable[FrameJob], on_result: OnResult, *, workers: int | None = None,
-             scheduler: str | None = None, timeout_s: float = 60.0) -> None:
+def run_dask(jobs: Iterable[Any], on_result: OnResult, *, workers: int | None = None,
+             scheduler: str | None = None, timeout_s: float = 60.0,
+             task: Callable[[Any], dict[str, Any]] = run_frame_job) -> None:
     """Run the jobs on Dask: a local cluster of ``workers`` processes, or ``scheduler``.
 
     Parameters
@@ -197,6 +198,9 @@ def run_dask(jobs: Iterable[FrameJob], on_result: OnResult, *, workers: int | No
         the output directory at the same path.
     timeout_s
         Time allowed to start the cluster or reach the scheduler.
+    task
+        What a worker runs on each job (default: a frame job; shard jobs pass
+        :func:`~lidarsim_core.dataset.shards.run_shard_job`).
     """
     if (workers is None) == (scheduler is None):
         raise ConfigError("give either a number of workers or a scheduler address",
@@ -222,7 +226,7 @@ def run_dask(jobs: Iterable[FrameJob], on_result: OnResult, *, workers: int | No
             job = next(pending, None)
             if job is None:
                 return False
-            future = client.submit(run_frame_job, job, pure=False)
+            future = client.submit(task, job, pure=False)
             in_flight.add(future)
             running.add(future)
             return True

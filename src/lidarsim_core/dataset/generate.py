@@ -80,6 +80,14 @@ from .manifest import read_manifest, write_manifest
 from .poses import PosesFile
 from .progress import FrameProgress
 from .sequence import SequenceRun
+from .sharded import (
+    SEQUENCES_ARCHIVE,
+    archive_members,
+    run_sharded,
+    sharded_differences,
+    write_sequence_archive,
+)
+from .shards import SHARD_FORMAT, SHARD_SUFFIX, SHARDS_DIR, ShardFormat, sample_key
 from .splits import assign_splits, splits_record, trajectory_key
 
 #: Name of the only sequence of a dataset made from one scenario.
@@ -122,7 +130,8 @@ class DatasetResult:
 
 
 
-def _plan_for(source: Scenario | str | Path, frames: int | None) -> DatasetPlan:
+def _plan_for(source: Scenario | str | Path, frames: int | None,
+              sequences: int | None = None) -> DatasetPlan:
     if isinstance(source, Scenario):
         scenario = source
         if frames is not None:
@@ -130,7 +139,7 @@ def _plan_for(source: Scenario | str | Path, frames: int | None) -> DatasetPlan:
                                         source=None if source.source == "<scenario>"
                                         else source.source)
         return DatasetPlan([SequencePlan(SINGLE_SEQUENCE, scenario)], scenario.source)
-    plan = load_plan(source, frames=frames)
+    plan = load_plan(source, frames=frames, sequences=sequences)
     if not plan.multi:
         plan.sequences[0].name = SINGLE_SEQUENCE
     return plan
@@ -148,11 +157,13 @@ def _plan_for(source: Scenario | str | Path, frames: int | None) -> DatasetPlan:
 
 
 
-def _normalise(plan: DatasetPlan, root: Path, copier: InputCopier) -> list[SequenceRun]:
+def _normalise(plan: DatasetPlan, root: Path, copier: InputCopier, sharded: bool = False
+               ) -> list[SequenceRun]:
     registry = get_registry()
     out = []
     for seq in plan.sequences:
-        seq_root = sequence_root(root, seq.name, plan.multi)
+        # a sharded dataset keeps every sequence's files in one archive, relative to the root
+        seq_root = root if sharded else sequence_root(root, seq.name, plan.multi)
         normal = normalize_scenario(seq.scenario, registry)
         data = normal.model_dump(mode="json")
         copier.localize(normal, data, seq_root)
@@ -178,13 +189,19 @@ def _cloud_path(frame: int, suffix: str) -> str:
 def _prepare_sequence(seq: SequenceRun, suffix: str) -> None:
     from ..pipeline.simulation import Simulation
 
-    _write_text(seq.copy_path, yaml.safe_dump(seq.data, sort_keys=False))
+    if suffix != SHARD_SUFFIX:  # sharded: in the sequences archive
+        _write_text(seq.copy_path, yaml.safe_dump(seq.data, sort_keys=False))
     seq.scenario = scenario_from_dict(seq.data, source=seq.copy_path)
     sim = Simulation(seq.scenario)
     seq.frames = seq.scenario.scan.frames
-    seq.poses = PosesFile(sim, seq.frames, lambda f: _cloud_path(f, suffix))
+    if suffix == SHARD_SUFFIX:  # the sample's key in the shards
+        seq.poses = PosesFile(sim, seq.frames, lambda f: sample_key(seq.plan.name, f))
+    else:
+        seq.poses = PosesFile(sim, seq.frames, lambda f: _cloud_path(f, suffix))
     seq.sim = sim
     seq.identity = sequence_identity(seq.plan.name, sim, get_registry(), seq.poses.sha256)
+    if seq.plan.drawn:  # randomised: the drawn values are part of what the dataset is
+        seq.identity["drawn"] = seq.plan.drawn
     seq.group = seq.plan.group or trajectory_key(seq.scenario)
 
 
@@ -238,16 +255,20 @@ def _dataset_copy(plan: DatasetPlan, root: Path, sequences: list[SequenceRun],
     return yaml.safe_dump(data, sort_keys=False)
 
 
-def _sequence_summary(root: Path, seq: SequenceRun, split: str | None, bag: bool
-                      ) -> dict[str, Any]:
+def _sequence_summary(root: Path, seq: SequenceRun, split: str | None, bag: bool,
+                      sharded: bool = False) -> dict[str, Any]:
     rel = seq.root.relative_to(root).as_posix() if seq.root != root else "."
     assert seq.scenario is not None
     out = {"name": seq.plan.name, "root": rel, "scenario": SCENARIO_COPY, "poses": POSES,
            "frames_dir": FRAMES_DIR, "frame_count": seq.frames, "seed": seq.scenario.seed,
            "config_hash": seq.scenario.config_hash(), "split": split, "group": seq.group}
+    if seq.plan.drawn:
+        out["drawn"] = seq.plan.drawn
     if bag:
         out["frames_dir"] = None
         out["bag"] = {"file": BAG_NAME}
+    if sharded:
+        out["frames_dir"] = None
     return out
 
 
@@ -257,7 +278,8 @@ def generate_dataset(source: Scenario | str | Path, out: str | Path, *,
                      workers: int | None = None, scheduler: str | None = None,
                      quiet: bool = True, verify: bool = False,
                      spool_memory: int = DEFAULT_SPOOL_MEMORY,
-                     livox: bool = False, display: Any = None) -> DatasetResult:
+                     livox: bool = False, display: Any = None,
+                     sequences: int | None = None) -> DatasetResult:
     """Generate (or resume, or check) a dataset in ``out``.
 
     Parameters
@@ -291,6 +313,9 @@ def generate_dataset(source: Scenario | str | Path, out: str | Path, *,
     livox
         With ``format="mcap"``: also write the Livox ``CustomMsg`` topic (exporter option
         ``livox``).
+    sequences
+        Number of sequences drawn from every randomised entry of a dataset file
+        (:mod:`lidarsim_core.dataset.randomize`).
 
     Returns
     -------
@@ -305,7 +330,7 @@ def generate_dataset(source: Scenario | str | Path, out: str | Path, *,
     ConfigError
         For invalid scenarios, dataset files or options (one line naming file and field).
     """
-    plan = _plan_for(source, frames)
+    plan = _plan_for(source, frames, sequences)
     registry = get_registry()
     config = plan.config
     root = Path(out).resolve()
@@ -325,7 +350,12 @@ def generate_dataset(source: Scenario | str | Path, out: str | Path, *,
         if name != BAG_FORMAT:
             raise ConfigError(f"--livox needs --format mcap (not {name})", field="livox")
         options = {**options, "livox": True}
-    if name == BAG_FORMAT:
+    if name == SHARD_FORMAT:
+        if config is None or config.samples is None:
+            raise ConfigError("format 'shards' needs a dataset file with a 'samples:' section",
+                              source=plan.source, field="samples")
+        exporter = ShardFormat(config.samples)
+    elif name == BAG_FORMAT:
         if workers is not None or scheduler is not None:
             raise ConfigError("--format mcap writes each sequence's bag in this process; "
                               "drop --workers/--scheduler", field="workers")
@@ -355,9 +385,11 @@ def generate_dataset(source: Scenario | str | Path, out: str | Path, *,
         try:
             check_directory(root, manifest)
             copier = InputCopier(root)
-            sequences = _normalise(plan, root, copier)
+            sequences = _normalise(plan, root, copier, isinstance(exporter, ShardFormat))
             if manifest is not None:
-                lines = scenario_differences(root, sequences, manifest)
+                lines = sharded_differences(root, sequences, manifest) \
+                    if isinstance(exporter, ShardFormat) else \
+                    scenario_differences(root, sequences, manifest)
                 if lines:
                     copier.forget_created()
                     refuse(root, lines)
@@ -391,26 +423,40 @@ def _run(plan: DatasetPlan, root: Path, sequences: list[SequenceRun], exporter: 
          ) -> DatasetResult:
     registry = get_registry()
     bag = isinstance(exporter, BagFormat)
+    sharded = isinstance(exporter, ShardFormat)
     for seq in sequences:
         _prepare_sequence(seq, suffix)
-    exp_id = exporter.identity() if bag else exporter_identity(exporter, registry)
+    exp_id = exporter.identity() if bag or sharded else exporter_identity(exporter, registry)
     identity = dataset_identity([s.identity for s in sequences if s.identity], exp_id,
                                 multi=plan.multi, packages=package_versions(exporter.requires))
     if manifest is not None and manifest.get("identity") != identity:
         refuse(root, differences(manifest.get("identity"), identity))
-    remove_stale_parts([root, root / INPUTS_DIR, root / SPLITS_DIR] +
+    remove_stale_parts([root, root / INPUTS_DIR, root / SPLITS_DIR, root / SHARDS_DIR] +
                        [d for s in sequences for d in (s.root, s.root / FRAMES_DIR)])
     assignment, split_record = _splits(plan, sequences)
-    summaries = [_sequence_summary(root, s, assignment.get(s.plan.name), bag)
+    summaries = [_sequence_summary(root, s, assignment.get(s.plan.name), bag, sharded)
                  for s in sequences]
+    if sharded:
+        for summary in summaries:
+            summary.update(root=SEQUENCES_ARCHIVE, **archive_members(summary["name"]))
     write_manifest(root / MANIFEST, identity=identity, sequences=summaries, splits=split_record)
+    if sharded:
+        write_sequence_archive(root, sequences)
     for seq in sequences:
         assert seq.poses is not None
+        if sharded:
+            continue
         seq.poses.save(seq.root / POSES)
-        if not bag:
+        if not bag and not sharded:
             (seq.root / FRAMES_DIR).mkdir(parents=True, exist_ok=True)
-    if plan.multi:
+    if plan.multi and not sharded:  # sharded: the manifest holds every sequence's values
         _write_text(root / DATASET_COPY, _dataset_copy(plan, root, sequences, exp_id))
+    if sharded:
+        return DatasetResult(root, *run_sharded(root, sequences, exporter, identity, summaries,
+                                                assignment, split_record, workers=workers,
+                                                scheduler=scheduler, display=display,
+                                                verify=verify, source=plan.source,
+                                                previous=manifest))
     if split_record is not None:
         _write_split_lists(root, sequences, assignment, split_record, suffix)
     if bag:

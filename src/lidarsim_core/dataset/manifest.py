@@ -69,7 +69,8 @@ def _write_json_stream(out: IO[bytes], head: dict[str, Any], sequences: list[dic
 def write_manifest(path: Path, *, identity: dict[str, Any], sequences: list[dict[str, Any]],
                    splits: dict[str, Any] | None,
                    frames_of: Callable[[int], Iterator[dict[str, Any]]] | None = None,
-                   totals: dict[str, int] | None = None) -> None:
+                   totals: dict[str, int] | None = None,
+                   extra: dict[str, Any] | None = None) -> None:
     """Write the manifest atomically.
 
     Parameters
@@ -86,11 +87,14 @@ def write_manifest(path: Path, *, identity: dict[str, Any], sequences: list[dict
         For a complete dataset: sequence index → iterator of frame entries.
     totals
         For a complete dataset: frames, points and bytes over all sequences.
+    extra
+        More top-level entries, written last (a sharded dataset's ``shards``).
     """
     head = {"format": MANIFEST_FORMAT, "version": MANIFEST_VERSION,
             "complete": frames_of is not None, "identity": identity, "seed_scheme": SEED_SCHEME}
     tail: dict[str, Any] = {"splits": splits}
     if totals is not None:
         tail["totals"] = totals
+    tail.update(extra or {})
     with atomic_output(path) as stream:
         _write_json_stream(stream, head, sequences, frames_of, tail)

@@ -77,6 +77,11 @@ class PosesFile:
         with atomic_output(path) as stream:
             shutil.copyfileobj(self._buffer, stream)
 
+    def read_bytes(self) -> bytes:
+        """The whole poses file."""
+        self._buffer.seek(0)
+        return self._buffer.read()
+
     def close(self) -> None:
         """Release the buffer."""
         self._buffer.close()
