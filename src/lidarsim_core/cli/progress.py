@@ -67,3 +67,15 @@ class EvaluateBar:
     def stop(self) -> None:
         """Leave the finished bar on the terminal."""
         self._progress.stop()
+
+
+def status(line: str) -> None:
+    """One progress line on stderr, ``lidarsim: <line>…`` (a step that takes a while starts;
+    plain text, so a log or a pipe shows it too, and never mixed into stdout)."""
+    import sys
+
+    try:
+        sys.stderr.write(f"lidarsim: {line}…\n")
+        sys.stderr.flush()
+    except (BrokenPipeError, ValueError):  # nobody reads stderr any more
+        pass

@@ -88,12 +88,12 @@ def _view(path: Path, color_by: str, screenshot: Path | None, frame: int | None,
     if screenshot is not None:
         if screenshot.suffix.lower() != ".png":
             raise OutputError("the screenshot must be a .png file", source=screenshot)
-        if screenshot.exists() and not overwrite:
-            raise OutputError("output file exists (use --overwrite to replace it)",
-                              source=screenshot)
-        parent = screenshot.parent if str(screenshot.parent) else Path(".")
-        if not parent.is_dir():
-            raise OutputError(f"output directory does not exist: {parent}", source=screenshot)
+        from ..base.outputs import check_file
+
+        check_file(screenshot, overwrite=overwrite)  # a missing folder is created below
+    from .progress import status
+
+    status(f"reading {path}")
     if path.is_dir():
         clouds = _clouds_of_run(path, frame)
         meshes = _meshes(path, clouds[0][1])
@@ -110,6 +110,7 @@ def _view(path: Path, color_by: str, screenshot: Path | None, frame: int | None,
 
         plotter = pv.Plotter(window_size=[1200, 800])
         plotter.set_background("white")
+    status("rendering" if screenshot is not None else "opening the viewer window")
     _draw(plotter, clouds, colours, meshes)
     title = path.name if not path.is_dir() else \
         f"{path.name}: frame {clouds[0][1].frame.frame}, {', '.join(p.name for p, _ in clouds)}"
@@ -117,8 +118,10 @@ def _view(path: Path, color_by: str, screenshot: Path | None, frame: int | None,
     if screenshot is None:
         plotter.show()
         return
+    from ..base.outputs import make_parent
     from ..report.render import save_plotter
 
+    make_parent(screenshot)
     save_plotter(plotter, screenshot)
     n = sum(len(c) for _, c in clouds)
     typer.echo(f"wrote {screenshot} ({n:,} points coloured by {color_by}"
