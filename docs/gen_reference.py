@@ -115,20 +115,75 @@ def field_rows(model: type[BaseModel], prefix: str = "", *,
                stop: tuple[type[BaseModel], ...] = ()) -> list[tuple[str, str, str, str]]:
     """``(dotted name, type, default, description)`` of every field of ``model``, recursively.
 
-    Models in ``stop`` are listed as one field (they have their own table).
+    Models in ``stop`` are listed as one field (they have their own table). The alternatives
+    of a tagged union (models told apart by a literal field such as ``type`` or ``mode``) are
+    listed one after the other: the tag with every value it takes, then each alternative's
+    fields, their meaning starting with the tag value they belong to.
     """
-    rows: dict[str, tuple[str, str, str, str]] = {}
+    rows: dict[tuple[str, str], tuple[str, str, str, str]] = {}
     for name, field in model.model_fields.items():
         path = f"{prefix}{name}"
         nested = [(suffix, m) for suffix, m in _nested_models(field.annotation)]
         meaning = field.description or (_summary(nested[0][1]) if nested else "")
-        rows.setdefault(path, (path, type_name(field.annotation), default_text(field), meaning))
+        rows.setdefault((path, ""), (path, type_name(field.annotation), default_text(field),
+                                     meaning))
+        tag = _union_tag([m for _, m in nested]) if len(nested) > 1 else None
         for suffix, sub in nested:
-            if sub not in stop:
-                # models that share field names (alternatives of a union) share their rows
+            if sub in stop:
+                continue
+            if tag is None:
+                # models that share field names (alternatives of an untagged union) share rows
                 for row in field_rows(sub, f"{path}{suffix}.", stop=stop):
-                    rows.setdefault(row[0], row)
+                    rows.setdefault((row[0], ""), row)
+                continue
+            values = [v for _, m in nested for v in _literal_values(m, tag)]
+            tag_path = f"{path}{suffix}.{tag}"
+            chosen = _default_tag(typing.Annotated[(field.annotation, *field.metadata)]
+                                  if field.metadata else field.annotation)
+            rows.setdefault((tag_path, ""), (
+                tag_path, " / ".join(f"`{v}`" for v in dict.fromkeys(values)),
+                f"`{chosen}`" if chosen is not None else "required",
+                f"Which kind of {name.rstrip('s')}: one of the alternatives below."))
+            value = "/".join(str(v) for v in _literal_values(sub, tag))
+            for row in field_rows(sub, f"{path}{suffix}.", stop=stop):
+                if row[0] == tag_path:
+                    continue
+                where = f"With `{tag}: {value}`" + (f": {row[3]}" if row[3] else ".")
+                rows.setdefault((row[0], value), (row[0], row[1], row[2], where))
     return list(rows.values())
+
+
+def _literal_values(model: type[BaseModel], name: str) -> list[Any]:
+    field = model.model_fields.get(name)
+    if field is None or typing.get_origin(field.annotation) is not typing.Literal:
+        return []
+    return list(typing.get_args(field.annotation))
+
+
+def _default_tag(annotation: Any) -> str | None:
+    """The alternative a union's callable discriminator picks when the tag is left out (None
+    when the tag is required)."""
+    from pydantic import Discriminator
+
+    for arg in typing.get_args(annotation):
+        if isinstance(arg, Discriminator) and callable(arg.discriminator):
+            return arg.discriminator({})
+        found = _default_tag(arg) if typing.get_args(arg) else None
+        if found is not None:
+            return found
+    return None
+
+
+def _union_tag(models: list[type[BaseModel]]) -> str | None:
+    """The field that tells the alternatives ``models`` apart: a literal in every one of
+    them, with different values (None for an untagged union)."""
+    if len(set(models)) < 2:
+        return None
+    for name in models[0].model_fields:
+        values = [tuple(_literal_values(m, name)) for m in models]
+        if all(values) and len(set(values)) == len(values):
+            return name
+    return None
 
 
 def table(rows: list[tuple[str, str, str, str]]) -> str:

@@ -21,7 +21,7 @@ def readme_commands() -> list[str]:
     """The commands of the README's "The two commands" block, in order."""
     text = (ROOT / "README.md").read_text(encoding="utf-8")
     section = text.split("## The two commands", 1)[1]
-    block = re.search(r"```bash\n(.*?)```", section, re.S).group(1)
+    block = re.search(r"```bash[^\n]*\n(.*?)```", section, re.S).group(1)
     return [line for line in block.splitlines() if line and not line.startswith("#")]
 
 
