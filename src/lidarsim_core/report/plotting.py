@@ -12,13 +12,17 @@ from .colouring import PointColours, part_colour
 
 
 def look(plotter: Any, focus: np.ndarray, view_from: np.ndarray, up: np.ndarray,
-          zoom: float = 1.0) -> None:
-    """Aim the active camera at ``focus`` from direction ``view_from``, then fit the scene."""
+          zoom: float = 1.0, bounds: tuple[float, ...] | None = None) -> None:
+    """Aim the active camera at ``focus`` from direction ``view_from``, then fit the scene
+    (or only ``bounds``, ``(xmin, xmax, ymin, ymax, zmin, zmax)``: what must fill the view)."""
     view_from = np.asarray(view_from, dtype=float) / np.linalg.norm(view_from)
     plotter.camera.focal_point = tuple(focus)
     plotter.camera.position = tuple(np.asarray(focus) + view_from)
     plotter.camera.up = tuple(up)
-    plotter.reset_camera()
+    if bounds is None:
+        plotter.reset_camera()
+    else:
+        plotter.reset_camera(bounds=bounds)
     plotter.camera.zoom(zoom)
 
 
@@ -66,10 +70,14 @@ def add_coloured_points(plotter: Any, points: np.ndarray, colours: PointColours,
                      scalar_bar_args={"title": colours.label, "color": "black", "fmt": fmt,
                                       "n_labels": labels, "title_font_size": 14,
                                       "label_font_size": 12, **place})
-    if bar_below and new_bar:  # VTK writes a horizontal bar's title over its tick labels
+    if new_bar:  # VTK writes a bar's title over its end tick labels: put it clear of them
         plotter.scalar_bars[colours.label].SetTitle("")
-        plotter.add_text(colours.label, position=(0.29, 0.045), viewport=True, font_size=9,
-                         color="black").GetTextProperty().SetJustificationToRight()
+        if bar_below:  # left of the bar, a gap before its first label
+            plotter.add_text(colours.label, position=(0.25, 0.045), viewport=True, font_size=9,
+                             color="black").GetTextProperty().SetJustificationToRight()
+        else:  # above the bar, a gap over its top label
+            plotter.add_text(colours.label, position=(0.86, 0.15 + 0.6 + 0.05), viewport=True,
+                             font_size=9, color="black")
 
 
 def add_legend(plotter: Any, names: list[str], indices: Any, face: str) -> None:
