@@ -143,3 +143,27 @@ def test_bench_tables_fit_80_columns(monkeypatch, capsys):
     assert max(len(line) for line in table_lines) <= 80, table_lines
     for figure in ("33.00M", "35.00M", "19.00M", "0.31", "2.00M", "20.00M", "0.12"):
         assert figure in out, figure
+
+
+def test_demo_says_it_compiles_before_compiling(monkeypatch, tmp_path, capsys):
+    """The first ``lidarsim demo`` after installing spends up to a minute compiling the
+    kernels: a progress line is printed before that work starts (not after it)."""
+    import lidarsim_core.kernels as kernels
+
+    seen: list[str] = []
+
+    class Stop(Exception):
+        pass
+
+    def warm_up():
+        seen.append(capsys.readouterr().err)
+        raise Stop
+
+    monkeypatch.setattr(kernels, "enabled", lambda: True)
+    monkeypatch.setattr(kernels, "warm_up", warm_up)
+    from lidarsim_core.cli.demo import _demo
+
+    with pytest.raises(Stop):
+        _demo(tmp_path / "out", 0.1, "auto", "coarse", 1)
+    assert seen and seen[0].startswith("lidarsim: compiling kernels, once per install"), seen
+    assert not (tmp_path / "out").exists()  # nothing written before the work

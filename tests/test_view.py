@@ -145,3 +145,28 @@ def test_two_clouds_of_a_run_are_drawn_in_different_colours(run_dir, tmp_path):
     res = _cli("view", str(both), "--color-by", "range", "--screenshot", str(single))
     assert res.exit_code == 0, res.output
     assert magenta(single) == 0 and magenta(shot) > 500
+
+
+def test_a_long_target_seen_broadside_stays_in_the_view():
+    """The camera fit keeps every corner of a long body inside a square panel (Fig. 12b of a
+    flash run cut the bus at the right edge)."""
+    import pyvista as pv
+
+    from lidarsim_core.report.plotting import look, oblique_view
+    from lidarsim_core.report.render import new_plotter, rendering_backend
+
+    rendering_backend()
+    plotter = new_plotter(shape=(1, 2), window_size=(1800, 900))
+    plotter.subplot(0, 1)
+    box = pv.Box(bounds=(29.0, 31.0, -20.0, 6.0, -1.0, 1.0))  # 26 m across the view
+    plotter.add_mesh(box)
+    centre = np.array([30.0, -7.0, 0.0])
+    look(plotter, centre, oblique_view(centre), np.array([0.0, 0.0, 1.0]), zoom=1.05)
+    renderer, camera = plotter.renderer, plotter.camera
+    matrix = camera.GetCompositeProjectionTransformMatrix(renderer.GetTiledAspectRatio(), -1, 1)
+    m = np.array([[matrix.GetElement(i, j) for j in range(4)] for i in range(4)])
+    corners = np.c_[np.asarray(box.points), np.ones(len(box.points))] @ m.T
+    ndc = corners[:, :2] / corners[:, 3:4]
+    plotter.close()
+    assert np.abs(ndc).max() <= 0.98  # inside the panel, with a margin
+    assert np.abs(ndc).max() > 0.5  # and still filling it

@@ -24,6 +24,32 @@ def look(plotter: Any, focus: np.ndarray, view_from: np.ndarray, up: np.ndarray,
     else:
         plotter.reset_camera(bounds=bounds)
     plotter.camera.zoom(zoom)
+    fit_in_view(plotter, bounds)
+
+
+def fit_in_view(plotter: Any, bounds: tuple[float, ...] | None = None,
+                margin: float = 0.97) -> None:
+    """Zoom the active camera out, if needed, until every corner of ``bounds`` (default: the
+    visible actors' box) is in the view: a long target seen broadside is not cut at the edges
+    (fitting a bounding sphere to the view's height leaves a wide one cut in a narrow
+    panel)."""
+    renderer = plotter.renderer
+    if bounds is None:
+        bounds = tuple(renderer.ComputeVisiblePropBounds())
+    if not np.all(np.isfinite(bounds)) or bounds[0] > bounds[1]:
+        return
+    camera = plotter.camera
+    matrix = camera.GetCompositeProjectionTransformMatrix(renderer.GetTiledAspectRatio(), -1, 1)
+    m = np.array([[matrix.GetElement(i, j) for j in range(4)] for i in range(4)])
+    corners = np.array([[x, y, z, 1.0] for x in bounds[0:2] for y in bounds[2:4]
+                        for z in bounds[4:6]])
+    projected = corners @ m.T
+    w = projected[:, 3:4]
+    if np.any(w <= 0):
+        return
+    extent = float(np.abs(projected[:, :2] / w).max())
+    if extent > margin:
+        camera.zoom(margin / extent)
 
 
 def oblique_view(centre: np.ndarray) -> np.ndarray:
