@@ -17,10 +17,10 @@ It writes the reference pages
 
 puts before each ``::: module`` directive of ``api.md`` the module's summary and its public
 names with their first docstring paragraph (read from the source), so the API page reads in
-the repository too; and renders code from the examples into the guides: a fenced block right after a line
-``<!-- code from examples/paper_experiment.py:sensor -->`` is replaced by the lines between
-``# [start:sensor]`` and ``# [end:sensor]`` of that file (the example runs in the tests, so the
-code the tutorial shows runs too).
+the repository too; and renders code from the examples into the guides: a fenced block
+right after a line ``<!-- code from examples/paper_experiment.py:sensor -->`` is replaced by
+the lines between ``# [start:sensor]`` and ``# [end:sensor]`` of that file (the example runs
+in the tests, so the code the tutorial shows runs too).
 
 Only built-in plugins are documented: third-party entry points are switched off here.
 """

@@ -8,8 +8,8 @@ sequence folder of a dataset, is a run directory too: its clouds are in ``frames
 cloud is coloured by ``--color-by``, any other cloud of the frame (the run without errors)
 in one solid colour named in a legend. Everything is drawn in the sensor frame (the sensor is
 the red dot at the origin, the axes in the corner); the view frames the targets and their
-points, with a scale bar under them. Without ``--screenshot`` an interactive window opens; with it the view is
-rendered off-screen to a PNG (extra ``viz``).
+points, with a scale bar under them. Without ``--screenshot`` an interactive window opens;
+with it the view is rendered off-screen to a PNG (extra ``viz``).
 """
 
 from __future__ import annotations
