@@ -159,6 +159,7 @@ def test_demo_says_it_compiles_before_compiling(monkeypatch, tmp_path, capsys):
         seen.append(capsys.readouterr().err)
         raise Stop
 
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True, raising=False)  # a terminal
     monkeypatch.setattr(kernels, "enabled", lambda: True)
     monkeypatch.setattr(kernels, "warm_up", warm_up)
     from lidarsim_core.cli.demo import _demo

@@ -28,7 +28,7 @@ def readme_commands() -> list[str]:
 def test_the_readme_names_two_commands_and_ci_runs_the_second_verbatim():
     demo, tests = readme_commands()
     assert demo.endswith("lidarsim demo --out demo-out") and "pip install" in demo
-    assert tests.endswith("python -m pytest")
+    assert tests.endswith("python -m pytest -n auto --dist loadscope")
     assert tests in (ROOT / ".ci" / "run").read_text(encoding="utf-8").splitlines()
 
 

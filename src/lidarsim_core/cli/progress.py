@@ -70,11 +70,14 @@ class EvaluateBar:
 
 
 def status(line: str) -> None:
-    """One progress line on stderr, ``lidarsim: <line>…`` (a step that takes a while starts;
-    plain text, so a log or a pipe shows it too, and never mixed into stdout)."""
+    """One progress line on stderr, ``lidarsim: <line>…``, when a step that takes a while
+    starts; only when stderr is a terminal, like the progress bars (``cli.output``): a
+    script reading stderr gets only the one ``error:`` line of a failure."""
     import sys
 
     try:
+        if not sys.stderr.isatty():
+            return
         sys.stderr.write(f"lidarsim: {line}…\n")
         sys.stderr.flush()
     except (BrokenPipeError, ValueError):  # nobody reads stderr any more
