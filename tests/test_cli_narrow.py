@@ -112,6 +112,9 @@ def test_listings_print_every_summary_whole():
     _check_plain(sensors, "lidarsim sensors", width=None)
     for entry in json.loads(_run("sensors", "--json")):
         assert entry["name"] in sensors
+    coverage = _run("coverage", "livox-mid70", "--time", "0.02")
+    _check_plain(coverage, "lidarsim coverage", width=None)
+    assert "off-axis" in coverage
 
 
 def test_bench_tables_fit_80_columns(monkeypatch, capsys):
