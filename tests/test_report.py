@@ -404,7 +404,7 @@ def test_the_pages_regenerate_command_works_as_written(demo_dir):
     words = shlex.split(command)
     assert words[:2] == ["lidarsim", "report"] and "--overwrite" in words
     before = {p.name for p in demo_dir.iterdir()}
-    res = _cli(*words[2:])
+    res = _cli(*words[1:])
     assert res.returncode == 0, res.stderr
     assert {p.name for p in demo_dir.iterdir()} == before  # the same files, replaced
     assert res.stderr == ""  # progress lines only at a terminal: a pipe gets no chatter
