@@ -69,7 +69,7 @@ def _demo(out: Path, duration: float, backend: str, detail: str, seed: int,
     check_files(out, demo_files(), overwrite=overwrite)  # before any work: nothing replaced
     started = time.perf_counter()
     if kernels.enabled():
-        status("compiling kernels, once per install (about a minute; later runs load them "
+        status("compiling kernels, once per install (up to a minute; later runs load them "
                "from numba's cache in a second)")
     t0 = time.perf_counter()
     kernels_used = kernels.warm_up()  # compile or load the kernels outside the timed runs
