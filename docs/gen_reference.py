@@ -15,10 +15,12 @@ It writes the reference pages
   :class:`lidarsim_core.scenario.datasheet.SensorDatasheet`, and the options of every scan pattern;
 * ``reference/sensors.md`` — the built-in sensor catalogue, one row per file in ``sensors/``;
 
-and renders code from the examples into the guides: a fenced block right after a line
-``<!-- code from examples/paper_experiment.py:sensor -->`` is replaced by the lines between
-``# [start:sensor]`` and ``# [end:sensor]`` of that file (the example runs in the tests, so the
-code the tutorial shows runs too).
+puts before each ``::: module`` directive of ``api.md`` the module's summary and its public
+names with their first docstring paragraph (read from the source), so the API page reads in
+the repository too; and renders code from the examples into the guides: a fenced block
+right after a line ``<!-- code from examples/paper_experiment.py:sensor -->`` is replaced by
+the lines between ``# [start:sensor]`` and ``# [end:sensor]`` of that file (the example runs
+in the tests, so the code the tutorial shows runs too).
 
 Only built-in plugins are documented: third-party entry points are switched off here.
 """
@@ -115,20 +117,75 @@ def field_rows(model: type[BaseModel], prefix: str = "", *,
                stop: tuple[type[BaseModel], ...] = ()) -> list[tuple[str, str, str, str]]:
     """``(dotted name, type, default, description)`` of every field of ``model``, recursively.
 
-    Models in ``stop`` are listed as one field (they have their own table).
+    Models in ``stop`` are listed as one field (they have their own table). The alternatives
+    of a tagged union (models told apart by a literal field such as ``type`` or ``mode``) are
+    listed one after the other: the tag with every value it takes, then each alternative's
+    fields, their meaning starting with the tag value they belong to.
     """
-    rows: dict[str, tuple[str, str, str, str]] = {}
+    rows: dict[tuple[str, str], tuple[str, str, str, str]] = {}
     for name, field in model.model_fields.items():
         path = f"{prefix}{name}"
         nested = [(suffix, m) for suffix, m in _nested_models(field.annotation)]
         meaning = field.description or (_summary(nested[0][1]) if nested else "")
-        rows.setdefault(path, (path, type_name(field.annotation), default_text(field), meaning))
+        rows.setdefault((path, ""), (path, type_name(field.annotation), default_text(field),
+                                     meaning))
+        tag = _union_tag([m for _, m in nested]) if len(nested) > 1 else None
         for suffix, sub in nested:
-            if sub not in stop:
-                # models that share field names (alternatives of a union) share their rows
+            if sub in stop:
+                continue
+            if tag is None:
+                # models that share field names (alternatives of an untagged union) share rows
                 for row in field_rows(sub, f"{path}{suffix}.", stop=stop):
-                    rows.setdefault(row[0], row)
+                    rows.setdefault((row[0], ""), row)
+                continue
+            values = [v for _, m in nested for v in _literal_values(m, tag)]
+            tag_path = f"{path}{suffix}.{tag}"
+            chosen = _default_tag(typing.Annotated[(field.annotation, *field.metadata)]
+                                  if field.metadata else field.annotation)
+            rows.setdefault((tag_path, ""), (
+                tag_path, " / ".join(f"`{v}`" for v in dict.fromkeys(values)),
+                f"`{chosen}`" if chosen is not None else "required",
+                f"Which kind of {name.rstrip('s')}: one of the alternatives below."))
+            value = "/".join(str(v) for v in _literal_values(sub, tag))
+            for row in field_rows(sub, f"{path}{suffix}.", stop=stop):
+                if row[0] == tag_path:
+                    continue
+                where = f"With `{tag}: {value}`" + (f": {row[3]}" if row[3] else ".")
+                rows.setdefault((row[0], value), (row[0], row[1], row[2], where))
     return list(rows.values())
+
+
+def _literal_values(model: type[BaseModel], name: str) -> list[Any]:
+    field = model.model_fields.get(name)
+    if field is None or typing.get_origin(field.annotation) is not typing.Literal:
+        return []
+    return list(typing.get_args(field.annotation))
+
+
+def _default_tag(annotation: Any) -> str | None:
+    """The alternative a union's callable discriminator picks when the tag is left out (None
+    when the tag is required)."""
+    from pydantic import Discriminator
+
+    for arg in typing.get_args(annotation):
+        if isinstance(arg, Discriminator) and callable(arg.discriminator):
+            return arg.discriminator({})
+        found = _default_tag(arg) if typing.get_args(arg) else None
+        if found is not None:
+            return found
+    return None
+
+
+def _union_tag(models: list[type[BaseModel]]) -> str | None:
+    """The field that tells the alternatives ``models`` apart: a literal in every one of
+    them, with different values (None for an untagged union)."""
+    if len(set(models)) < 2:
+        return None
+    for name in models[0].model_fields:
+        values = [tuple(_literal_values(m, name)) for m in models]
+        if all(values) and len(set(values)) == len(values):
+            return name
+    return None
 
 
 def table(rows: list[tuple[str, str, str, str]]) -> str:
@@ -262,6 +319,86 @@ def sensor_catalogue() -> str:
     return "\n".join(lines) + "\n"
 
 
+# ---- the Python API page: what each module holds, readable in the repository -----------------
+#: A generated summary, placed before each ``::: module`` directive of ``docs/api.md``.
+_API_BLOCK = re.compile(r"<!-- api: [\w.]+ \(generated\) -->\n.*?<!-- /api -->\n\n", re.S)
+_API_DIRECTIVE = re.compile(r"^::: (?P<module>[\w.]+)$", re.M)
+
+
+def _module_file(module: str) -> Path:
+    base = ROOT / "src" / Path(*module.split("."))
+    return base / "__init__.py" if base.is_dir() else base.with_suffix(".py")
+
+
+def _first_paragraph(doc: str | None) -> str:
+    text = " ".join((doc or "").strip().split("\n\n")[0].split())
+    return re.sub(r":(?:class|func|mod|meth|attr|data|exc):`~?([^`]+)`", r"`\1`", text)
+
+
+def _public_definitions(module: str, depth: int = 0) -> tuple[str, list[tuple[str, str, str]]]:
+    """The module docstring's first paragraph and ``(name, kind, summary)`` of its public
+    names (``__all__`` when it has one, else its public classes and functions), read from
+    the source (nothing is imported)."""
+    import ast
+
+    tree = ast.parse(_module_file(module).read_text(encoding="utf-8"))
+    defined = {n.name: n for n in tree.body
+               if isinstance(n, (ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef))}
+    exported = next((ast.literal_eval(n.value) for n in tree.body if isinstance(n, ast.Assign)
+                     and any(getattr(t, "id", None) == "__all__" for t in n.targets)), None)
+    names = list(exported) if exported is not None else [n for n in defined
+                                                         if not n.startswith("_")]
+    imported = {}
+    package = module if _module_file(module).name == "__init__.py" else module.rpartition(".")[0]
+    for node in tree.body:
+        if isinstance(node, ast.ImportFrom) and node.level:
+            base = package.rsplit(".", node.level - 1)[0] if node.level > 1 else package
+            source = f"{base}.{node.module}" if node.module else base
+            for alias in node.names:
+                imported[alias.asname or alias.name] = (source, alias.name)
+    items = []
+    for name in names:
+        node = defined.get(name)
+        if node is not None:
+            kind = "class" if isinstance(node, ast.ClassDef) else "function"
+            items.append((name, kind, _first_paragraph(ast.get_docstring(node))))
+        elif name in imported and depth < 3:
+            source, original = imported[name]
+            found = {n: (k, d) for n, k, d in _definitions_of(source, depth + 1)}
+            kind, summary = found.get(original, ("", ""))
+            items.append((name, kind, summary))
+        else:
+            items.append((name, "", ""))
+    return _first_paragraph(ast.get_docstring(tree)), items
+
+
+def _definitions_of(module: str, depth: int) -> list[tuple[str, str, str]]:
+    try:
+        return _public_definitions(module, depth)[1]
+    except (OSError, SyntaxError):
+        return []
+
+
+def api_summary(module: str) -> str:
+    """The Markdown summary of ``module`` put before its ``::: module`` directive."""
+    doc, items = _public_definitions(module)
+    lines = [f"<!-- api: {module} (generated) -->", f"**`{module}`**: {doc}" if doc else
+             f"**`{module}`**", ""]
+    for name, kind, summary in items:
+        label = f"class `{name}`" if kind == "class" else (
+            f"`{name}()`" if kind == "function" else f"`{name}`")
+        lines.append(f"* {label}" + (f": {summary}" if summary else ""))
+    return "\n".join(lines + ["<!-- /api -->", "", ""])
+
+
+def render_api(markdown: str) -> str:
+    """``markdown`` (``docs/api.md``) with a summary of every ``::: module`` before it: the
+    page reads as a list of the public names in the repository, and mkdocstrings renders the
+    full reference on the site."""
+    markdown = _API_BLOCK.sub("", markdown)
+    return _API_DIRECTIVE.sub(lambda m: api_summary(m["module"]) + m[0], markdown)
+
+
 PAGES = {
     "reference/scenario.md": scenario_reference,
     "reference/datasheet.md": datasheet_reference,
@@ -299,6 +436,8 @@ def expected_files() -> dict[Path, str]:
         text = page.read_text(encoding="utf-8")
         if _INCLUDE.search(text):
             out[page] = render_includes(text)
+    api = ROOT / "docs" / "api.md"
+    out[api] = render_api(api.read_text(encoding="utf-8"))
     return out
 
 

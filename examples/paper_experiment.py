@@ -12,6 +12,7 @@ Usage::
 
 from __future__ import annotations
 
+# [start:setup]
 import math
 import os
 import sys
@@ -22,6 +23,7 @@ import numpy as np
 OUT = Path(sys.argv[1] if len(sys.argv) > 1 else "paper-out")
 DURATION_S = float(os.environ.get("LIDARSIM_EXAMPLE_DURATION", "1.0"))
 OUT.mkdir(parents=True, exist_ok=True)
+# [end:setup]
 
 # [start:sensor]
 import lidarsim_core as ls

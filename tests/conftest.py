@@ -5,8 +5,14 @@ on explicitly)."""
 from __future__ import annotations
 
 import os
+import signal
 
 os.environ.setdefault("LIDARSIM_DISABLE_PLUGIN_AUTOLOAD", "1")
+
+# pytest-xdist's workers ignore SIGINT, and an ignored signal stays ignored in every process
+# they start: the tests that interrupt a lidarsim run with Ctrl-C (SIGINT) need it delivered
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 import pytest  # noqa: E402
 

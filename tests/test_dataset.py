@@ -275,3 +275,20 @@ def test_cli_dataset_quiet_and_refusal_exit_codes(scenario_file, tmp_path):
     res = run_cli("dataset", str(scenario_file), "--out", str(out), "--format", "ply")
     assert res.returncode == 2
     assert "made differently (exporter.name" in res.stderr and "Traceback" not in res.stderr
+
+
+def test_a_finished_run_leaves_no_lock_file_and_the_lock_still_excludes(scenario_file,
+                                                                        tmp_path):
+    out = tmp_path / "ds"
+    generate_dataset(scenario_file, out)
+    assert not (out / ".lidarsim-dataset.lock").exists()
+    assert not any(p.name.startswith(".") for p in out.rglob("*"))  # nothing hidden is left
+    with dataset_lock(out):
+        assert (out / ".lidarsim-dataset.lock").is_file()
+        with pytest.raises(OutputError, match="another 'lidarsim dataset' run"):
+            with dataset_lock(out):
+                pass
+        assert (out / ".lidarsim-dataset.lock").is_file()  # the refused run removed nothing
+    assert not (out / ".lidarsim-dataset.lock").exists()
+    generate_dataset(scenario_file, out)  # resumes (nothing to do) and cleans up again
+    assert not (out / ".lidarsim-dataset.lock").exists()

@@ -293,7 +293,7 @@ def test_vendor_guide_datasheet_and_scenario_work(tmp_path):
     from lidarsim_core.scenario.datasheet import load_datasheet
     from lidarsim_core.scenario import load_scenario
 
-    blocks = re.findall(r"```yaml\n(.*?)```", (DOCS / "vendor_guide.md").read_text(), re.S)
+    blocks = _blocks(DOCS / "vendor_guide.md", "yaml")
     (tmp_path / "my-lidar.yaml").write_text(blocks[0])
     sheet = load_datasheet(tmp_path / "my-lidar.yaml")
     assert sheet.name == "acme-ml30" and sheet.estimated_fields == ["angular_precision_deg"]
@@ -391,7 +391,7 @@ def test_shell_commands_call_lidarsim_one_way():
 
 
 def _blocks(page: Path, lang: str) -> list[str]:
-    return re.findall(rf"```{lang}\n(.*?)```", page.read_text(encoding="utf-8"), re.S)
+    return re.findall(rf"```{lang}[^\n]*\n(.*?)```", page.read_text(encoding="utf-8"), re.S)
 
 
 def test_quickstart_code_runs_as_written(tmp_path):

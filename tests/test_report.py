@@ -387,3 +387,24 @@ def test_demo_without_the_viz_extra_says_so_in_one_line(tmp_path, monkeypatch, c
     out = capsys.readouterr().out
     assert "no report figures" in out and "lidarsim-core[viz]" in out
     assert list(tmp_path.iterdir()) == []
+
+
+@needs_viz
+def test_the_pages_regenerate_command_works_as_written(demo_dir):
+    """report.html ends with the command that regenerates it; run as printed (with its
+    --overwrite: the report's own files are in the folder), it succeeds and writes the same
+    figures."""
+    import html
+    import re
+    import shlex
+
+    page = (demo_dir / "report.html").read_text(encoding="utf-8")
+    command = html.unescape(re.search(r"<h2>Regenerate</h2>\s*<pre>(.*?)</pre>", page,
+                                      re.S).group(1))
+    words = shlex.split(command)
+    assert words[:2] == ["lidarsim", "report"] and "--overwrite" in words
+    before = {p.name for p in demo_dir.iterdir()}
+    res = _cli(*words[1:])
+    assert res.returncode == 0, res.stderr
+    assert {p.name for p in demo_dir.iterdir()} == before  # the same files, replaced
+    assert res.stderr == ""  # progress lines only at a terminal: a pipe gets no chatter

@@ -38,9 +38,10 @@ class Component:
 
     @classmethod
     def summary(cls) -> str:
-        """First line of the class docstring, for listings."""
+        """First paragraph of the class docstring on one line, for listings (whole: a
+        sentence that runs on to a second line is not cut)."""
         doc = inspect.getdoc(cls) or ""
-        return doc.splitlines()[0] if doc else ""
+        return " ".join(doc.split("\n\n")[0].split())
 
     @classmethod
     def from_config(cls, options: Mapping[str, Any] | None, *, source: str | None = None,

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import typer
 
-from .output import hide_flag_metavars
+from .output import hide_flag_metavars, stdout_is_terminal
 
 hide_flag_metavars()
 
@@ -43,3 +43,17 @@ def _root(debug: bool = typer.Option(False, "--debug", help="Show tracebacks on 
           ) -> None:
     STATE["debug"] = debug
 
+
+
+def plain_help_when_piped() -> None:
+    """``--help`` is rich (boxes, colour) at a terminal and Click's plain text when stdout is a
+    pipe or a file: wrapped at the width, never cut with an ellipsis, no box characters."""
+    mode = "rich" if stdout_is_terminal() else None
+    for typer_app in (app, schema_app):
+        typer_app.rich_markup_mode = mode  # read when the command tree is built, per run
+        for info in typer_app.registered_commands:
+            # the command list shows each command's first paragraph whole (wrapped), where
+            # Click would cut it to 45 characters with "..."
+            doc = info.help or (info.callback.__doc__ if info.callback else None) or ""
+            if info.short_help is None and doc.strip():
+                info.short_help = " ".join(doc.strip().split("\n\n")[0].split())

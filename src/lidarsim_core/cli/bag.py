@@ -17,7 +17,6 @@ def simulate_to_bag(scenario: "Scenario", frames: Sequence[int], out: Path, *,
                     overwrite: bool, livox: bool, range_image: bool = False) -> None:
     """Simulate ``frames`` into the bag ``out`` with a progress bar, then say what was
     written."""
-    from rich.console import Console
     from rich.markup import escape
 
     from ..base.errors import OutputError
@@ -39,6 +38,8 @@ def simulate_to_bag(scenario: "Scenario", frames: Sequence[int], out: Path, *,
                   on_frame=lambda _f, cloud: progress.frame_done(len(cloud)))
     topics = "/lidarsim/points, /tf, /lidarsim/ground_truth/<target>" + (
         ", /livox/lidar" if livox else "")
-    Console(highlight=False).print(
+    from .output import console
+
+    console().print(  # one line, never broken by the program (cli.output)
         f"wrote {len(frames)} frame(s), {progress.points:,} points in "
         f"{progress.elapsed:.2f} s → {escape(str(out))} (ROS 2 bag, MCAP; topics {topics})")

@@ -9,6 +9,8 @@ import typer
 
 from .app import app
 from .errors import run_guarded
+from .output import Column, print_table
+from .output import console as make_console
 
 
 @app.command()
@@ -30,10 +32,7 @@ def _bench(as_json: bool, quick: bool) -> None:
     if as_json:
         typer.echo(json.dumps(result, indent=2))
         return
-    from rich.console import Console
-    from rich.table import Table
-
-    console = Console(highlight=False, width=max(112, Console().width))
+    console = make_console()
     machine = result["machine"]
     console.print(f"[bold]lidarsim bench[/]: {machine['cpus']} CPUs, {machine['threads']} "
                   f"threads, NumPy {machine['numpy']}, embreex {machine['embreex'] or 'absent'}"
@@ -42,19 +41,22 @@ def _bench(as_json: bool, quick: bool) -> None:
                   "several runs.")
     scenes: dict[str, Any] = result["scenes"]
     names = sorted({b for s in scenes.values() for b in s["backends"]})
-    table = Table(show_edge=False)
-    columns = ["scene", "faces", "rays", "hit %"] + names + [
-        "bare 1t", f"bare {machine['threads']}t", "simulate", "sim/bare"]
-    for col in columns:
-        table.add_column(col, justify="left" if col == "scene" else "right", no_wrap=True)
+    threads = machine["threads"]
+    # narrow enough for 80 columns; faces and rays of each scene are on its line below
+    columns = [Column("scene", whole=True), Column("hit %", right=True)] + [
+        Column(b, right=True) for b in names] + [
+        Column(h, right=True) for h in ("bare 1t", f"bare {threads}t", "sim", "s/b")]
+    rows = []
     for name, s in scenes.items():
         ratio = s["simulate_over_bare"]
-        table.add_row(name, f"{s['triangles']:,}", f"{s['rays']:,}",
-                      f"{100 * (s['hit_fraction'] or 0):.1f}",
-                      *[_rate(s["backends"].get(b)) for b in names],
-                      _rate(s["bare_embree_1thread"]), _rate(s["bare_embree"]),
-                      _rate(s["simulate"]), "-" if ratio is None else f"{ratio:.2f}")
-    console.print(table)
+        rows.append([name, f"{100 * (s['hit_fraction'] or 0):.1f}",
+                     *[_rate(s["backends"].get(b)) for b in names],
+                     _rate(s["bare_embree_1thread"]), _rate(s["bare_embree"]),
+                     _rate(s["simulate"]), "-" if ratio is None else f"{ratio:.2f}"])
+    print_table(columns, rows)
+    console.print(f"sim: the whole simulation; s/b: sim over bare {threads}t")
+    for name, s in scenes.items():
+        console.print(f"{name}: {s['triangles']:,} faces, {s['rays']:,} rays")
     for name, s in scenes.items():
         single = ", ".join(f"{b} {_rate(v)}" for b, v in sorted(s["backends_1thread"].items()))
         cores = s.get("cores_used", {})
@@ -92,24 +94,22 @@ def _ratio(value: float | None) -> str:
 def _print_suite(console: Any, suite: dict[str, Any], threads: int) -> None:
     """The realistic scenes (:mod:`lidarsim_core.bench.suite`): a table, the stages and the
     issue's targets."""
-    from rich.table import Table
 
-    table = Table(show_edge=False, title="Realistic scenes: emitted rays per second")
-    columns = ["scene", "rays", "faces", "sim 1t", f"sim {threads}t", "bare 1t",
-               f"bare {threads}t", "sim/bare 1t", f"sim/bare {threads}t"]
-    for col in columns:
-        table.add_column(col, justify="left" if col == "scene" else "right", no_wrap=True)
-    for name, s in suite["scenes"].items():
-        table.add_row(name, f"{s['rays_emitted']:,}", f"{s['triangles']:,}",
-                      _rate(s["simulate_1thread"]), _rate(s["simulate"]),
-                      _rate(s["bare_embree_1thread"]), _rate(s["bare_embree"]),
-                      _ratio(s["simulate_over_bare_1thread"]), _ratio(s["simulate_over_bare"]))
-    console.print(table)
+    columns = [Column("scene", whole=True), Column("rays", right=True)] + [
+        Column(h, right=True) for h in ("sim 1t", f"sim {threads}t", "bare 1t",
+                                        f"bare {threads}t", "s/b 1t", f"s/b {threads}t")]
+    rows = [[name, f"{s['rays_emitted']:,}", _rate(s["simulate_1thread"]), _rate(s["simulate"]),
+             _rate(s["bare_embree_1thread"]), _rate(s["bare_embree"]),
+             _ratio(s["simulate_over_bare_1thread"]), _ratio(s["simulate_over_bare"])]
+            for name, s in suite["scenes"].items()]
+    print_table(columns, rows, title="Realistic scenes: emitted rays per second (s/b: "
+                                     "simulate over bare Embree)")
     for name, s in suite["scenes"].items():
         stages = s.get("stages_1thread")
         if stages:
             parts = ", ".join(f"{k} {v:.0f}" for k, v in stages["ns_per_ray"].items())
-            console.print(f"{name}: {s['description']}. One thread, ns per emitted ray: "
+            console.print(f"{name}: {s['description']}, {s['triangles']:,} faces. One thread, "
+                          "ns per emitted ray: "
                           f"{parts}; pulses left after culling "
                           f"{100 * (stages['pulses_after_cull'] or 0):.1f} %")
     targets = suite.get("targets", {})

@@ -15,7 +15,7 @@ from rich.markup import escape
 from . import demo, simulate, listings  # noqa: F401
 from . import patterns, poses, bench, report, dataset, mesh, view, evaluate  # noqa: F401
 # isort: on
-from .app import app
+from .app import app, plain_help_when_piped
 from .errors import fail_code, one_line
 from .output import console
 
@@ -42,6 +42,7 @@ def _run_app(argv: list[str] | None) -> int:
     except ImportError:  # pragma: no cover - older Typer on Click
         from click.exceptions import NoArgsIsHelpError, UsageError  # type: ignore[no-redef]
 
+    plain_help_when_piped()
     with sigterm_as_interrupt():
         try:
             # not standalone: a usage error (bad option value, unknown option) comes back here

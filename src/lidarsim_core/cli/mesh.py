@@ -3,7 +3,9 @@
 SOURCE is a built-in (or plugin) target model name, with ``--option key=value`` for its
 options, or a scenario file: then every target is written exactly as the simulation builds
 it (model options, mesh file, scale), one file per target, to ``--out`` as a directory
-(``<target>.obj``, or the ``--format`` suffix) or a template with ``{target}``. Meshes are in
+(``<target>.obj``, or the ``--format`` suffix) or a template with ``{target}``. An ``--out``
+without a suffix is a directory; missing folders are created, and every output is checked
+before any mesh is built or written. Meshes are in
 the target's body frame (the frame of ``targets_in_sensor`` and ``lidarsim poses``), parts as
 named objects (:mod:`lidarsim_core.io.meshfile`).
 """
@@ -15,6 +17,8 @@ from typing import Any
 
 import typer
 
+from ..base.errors import OutputError
+from ..base.outputs import make_parent
 from .app import app
 from .errors import run_guarded
 
@@ -56,7 +60,7 @@ def _parse_options(items: list[str]) -> dict[str, Any]:
 
 
 def _mesh(source: str, out: Path, option: list[str], fmt: str, overwrite: bool) -> None:
-    from ..base.errors import ConfigError, OutputError
+    from ..base.errors import ConfigError
     from ..io.meshfile import MESH_EXPORT_SUFFIXES, export_mesh
     from ..plugins.manager import get_registry
 
@@ -73,24 +77,43 @@ def _mesh(source: str, out: Path, option: list[str], fmt: str, overwrite: bool) 
         from ..pipeline.simulation import Simulation
         from ..scenario.load import load_scenario
 
-        targets = [(t.name, t.mesh) for t in Simulation(load_scenario(path)).targets]
+        scenario = load_scenario(path)
+        names = [t.name for t in scenario.targets]
+        jobs = _checked_outputs(out, names, suffix, overwrite)  # before any mesh is built
+        targets = [(t.name, t.mesh) for t in Simulation(scenario).targets]
     else:
         registry = get_registry()
         model = registry.get("target_model", source, field="SOURCE")
-        targets = [(source, model.from_config(_parse_options(option), field="--option").mesh())]
-    jobs = _outputs(out, [name for name, _ in targets], suffix)
+        config = model.from_config(_parse_options(option), field="--option")
+        jobs = _checked_outputs(out, [source], suffix, overwrite)
+        targets = [(source, config.mesh())]
     for (name, mesh_), target in zip(targets, jobs):
-        if target.exists() and not overwrite:
-            raise OutputError("output file exists (use --overwrite to replace it)",
-                              source=target)
-    for (name, mesh_), target in zip(targets, jobs):
+        make_parent(target)
         export_mesh(mesh_, target, overwrite=overwrite)
         typer.echo(f"{name}: {mesh_.n_faces:,} triangles, {len(mesh_.part_names)} parts "
                    f"({', '.join(mesh_.part_names)}) → {target}")
 
 
+def _checked_outputs(out: Path, names: list[str], suffix: str, overwrite: bool) -> list[Path]:
+    """The files to write, every one checked (format, overwrite policy, folder that can be
+    created) before any mesh is built or written; an ``.obj`` brings its ``.mtl``."""
+    from ..base.outputs import check_file
+    from ..io.meshfile import MESH_EXPORT_SUFFIXES
+
+    jobs = _outputs(out, names, suffix)
+    for target in jobs:
+        if target.suffix.lower() not in MESH_EXPORT_SUFFIXES:
+            raise OutputError(f"no mesh format for suffix '{target.suffix or '(none)'}'; known: "
+                              f"{', '.join(MESH_EXPORT_SUFFIXES)}", source=target)
+        check_file(target, overwrite=overwrite)
+        if target.suffix.lower() == ".obj":
+            check_file(target.with_suffix(".mtl"), overwrite=overwrite)
+    return jobs
+
+
 def _outputs(out: Path, names: list[str], suffix: str) -> list[Path]:
-    from ..base.errors import OutputError
+    """``--out`` as files: a template with ``{target}``, a directory (an existing one, or a
+    name without a suffix, created when missing), or one file."""
 
     text = str(out)
     for name in names:
@@ -100,7 +123,7 @@ def _outputs(out: Path, names: list[str], suffix: str) -> list[Path]:
         if "{target}" in str(out.parent):
             raise OutputError("'{target}' may appear in the file name only", source=out)
         return [Path(text.replace("{target}", name)) for name in names]
-    if out.is_dir():
+    if out.is_dir() or (not out.suffix and not out.exists()):
         return [out / f"{name}{suffix}" for name in names]
     if len(names) > 1:
         raise OutputError(f"the scenario has {len(names)} targets: give a directory or put "

@@ -67,3 +67,18 @@ class EvaluateBar:
     def stop(self) -> None:
         """Leave the finished bar on the terminal."""
         self._progress.stop()
+
+
+def status(line: str) -> None:
+    """One progress line on stderr, ``lidarsim: <line>…``, when a step that takes a while
+    starts; only when stderr is a terminal, like the progress bars (``cli.output``): a
+    script reading stderr gets only the one ``error:`` line of a failure."""
+    import sys
+
+    try:
+        if not sys.stderr.isatty():
+            return
+        sys.stderr.write(f"lidarsim: {line}…\n")
+        sys.stderr.flush()
+    except (BrokenPipeError, ValueError):  # nobody reads stderr any more
+        pass

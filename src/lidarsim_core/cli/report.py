@@ -46,9 +46,11 @@ def _report(run: Path, out: Path | None, scenario: Path | None, frame: int | Non
 
     check_number_option(coverage_time, "--coverage-time", positive=True)
     check_number_option(cell_deg, "--cell-deg", positive=True, maximum=360.0)
+    from .progress import status
+
     result = write_report(run, out, scenario=scenario, frame=frame, colour_by=color_by,
                           coverage_time_s=coverage_time, cell_deg=cell_deg, three_d=three_d,
-                          overwrite=overwrite)
+                          overwrite=overwrite, progress=status)
     print_report_summary(result)
 
 
@@ -90,7 +92,9 @@ def demo_report(out: Path, *, quiet: bool = False) -> Any:
     from .output import console
 
     try:
-        result = write_report(out, out, overwrite=True)
+        from .progress import status
+
+        result = write_report(out, out, overwrite=True, progress=status)
     except VizMissing as exc:
         console().print(f"[yellow]note:[/] no report figures: {escape(str(exc))}")
         return None

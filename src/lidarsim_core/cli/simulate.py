@@ -22,9 +22,10 @@ SPOOL_MEMORY_BYTES = 64 * 2 ** 20
 @app.command()
 def simulate(scenario: Path = typer.Argument(..., help="Scenario file (YAML, TOML or JSON)."),
              out: Path = typer.Option(..., "--out", "-o",
-                                      help="Output file; the suffix picks the format (.ply, "
-                                           ".npz). With several frames, put '{frame}' in the "
-                                           "name, e.g. cloud_{frame:04d}.ply."),
+                                      help="Output file; the suffix picks the format: .ply, "
+                                           ".pcd, .las, .laz, .npz, .csv, or .mcap (one ROS 2 "
+                                           "bag of every frame). With several frames, put "
+                                           "'{frame}' in the name, e.g. cloud_{frame:04d}.ply."),
              frame: Optional[int] = typer.Option(None, help="Only this frame (default: all)."),
              fmt: Optional[str] = typer.Option(None, "--format", help="Exporter name."),
              overwrite: bool = typer.Option(False, "--overwrite",
@@ -89,16 +90,27 @@ def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwri
         raise OutputError(f"the scenario has {len(frames)} frames: put '{{frame}}' in --out "
                           "(e.g. cloud_{frame:04d}.ply) or choose one with --frame", source=out)
     targets = frame_paths(out, frames) if templated else [out]
-    # unknown format or option: fail before simulating
-    exporter = exporter_for(targets[0], fmt,
-                            options={"dialect": dialect} if dialect is not None else None)
+    try:  # unknown format or option: fail before simulating
+        exporter = exporter_for(targets[0], fmt,
+                                options={"dialect": dialect} if dialect is not None else None)
+    except OutputError as exc:
+        if fmt:
+            raise
+        raise OutputError(f"{exc.message}; or .mcap for one ROS 2 bag of every frame",
+                          source=exc.source, field=exc.field) from None
     for target in targets:  # every output is checked before any work (lidarsim_core.base.outputs)
         check_file(target, overwrite=overwrite)
     sim = Simulation(scenario)  # guards third-party components itself
-    if range_image:
-        from ..io.rangeimage import check_layout
+    if range_image:  # the images' layout and files, checked before anything is simulated
+        from ..io.rangeimage import check_layout, range_image_paths
 
-        check_layout(sim.pattern)
+        try:
+            check_layout(sim.pattern, [(i.t_start, i.t_end) for i in sim.frame_infos(frames)])
+        except ConfigError as exc:  # name the scenario file the field is in
+            raise ConfigError(exc.message, source=exc.source or path, field=exc.field) from None
+        for target in targets:
+            for image in range_image_paths(target):
+                check_file(image, overwrite=overwrite)
     console = make_console()
     for f, target in zip(frames, targets):
         t0 = time.perf_counter()

@@ -146,27 +146,17 @@ def _pixels(pattern: "ScanPattern", cloud: "PointCloud", index: np.ndarray
         row_of[order] = np.arange(len(order))
         first = k0 // size
         width = (k1 - 1) // size - first + 1 if k1 > k0 else 0
-        revolution = 1.0 / pattern.options.rotation_hz
-        if width * pattern.cycle.period_s > revolution * (1 + 1e-9) + pattern.cycle.period_s:
-            raise ConfigError(f"the frame spans {width * pattern.cycle.period_s / revolution:.2f}"
-                             f" revolutions; a range image needs at most one (scan.duration_s "
-                             f"<= {revolution:g} s)", field="scan.duration_s")
+        _check_span(pattern, k0, k1)
         channel = pattern.cycle.channel(index).astype(np.int64)
         return ("spinning", (len(order), width), row_of[channel], index // size - first,
                 order.astype(np.int64))
     if isinstance(pattern, FlashPattern):
-        if k1 - k0 > size:
-            raise ConfigError(f"the frame holds {(k1 - k0) / size:g} flashes; a range image "
-                              "shows one (scan.duration_s = 1 / frame rate)",
-                              field="scan.duration_s")
+        _check_span(pattern, k0, k1)
         rows, cols = pattern.options.rows, pattern.options.columns
         pixel = pattern.cycle.slot(index)
         return "flash", (rows, cols), pixel // cols, pixel % cols, no_channels
     if isinstance(pattern, RasterPattern):
-        if k0 // size != (k1 - 1) // size:
-            raise ConfigError("the frame spans more than one raster frame; a range image shows "
-                              "one (scan.duration_s = the raster's frame period)",
-                              field="scan.duration_s")
+        _check_span(pattern, k0, k1)
         rows, cols = pattern.shape
         horizontal = pattern.options.line_axis == "horizontal"
         lines, samples = (rows, cols) if horizontal else (cols, rows)
@@ -218,11 +208,49 @@ def range_image(cloud: "PointCloud", pattern: "ScanPattern") -> RangeImage:
                       list(cloud.frame.part_names), row_channel)
 
 
-def check_layout(pattern: "ScanPattern") -> None:
-    """Raise :class:`ConfigError` unless ``pattern`` has a regular layout."""
+def _check_span(pattern: "ScanPattern", k0: int, k1: int) -> None:
+    """Raise :class:`ConfigError` unless the pulses ``k0..k1`` of a frame fit one image: at
+    most one revolution, one flash or one raster frame."""
+    from ..patterns.flash import FlashPattern
+    from ..patterns.raster import RasterPattern
+    from ..patterns.spinning import SpinningPattern
+
+    size = pattern.cycle.size
+    if isinstance(pattern, SpinningPattern):
+        width = (k1 - 1) // size - k0 // size + 1 if k1 > k0 else 0
+        revolution = 1.0 / pattern.options.rotation_hz
+        if width * pattern.cycle.period_s > revolution * (1 + 1e-9) + pattern.cycle.period_s:
+            raise ConfigError(f"the frame spans {width * pattern.cycle.period_s / revolution:.2f}"
+                              f" revolutions; a range image needs at most one (scan.duration_s "
+                              f"<= {revolution:g} s)", field="scan.duration_s")
+    elif isinstance(pattern, FlashPattern):
+        if k1 - k0 > size:
+            raise ConfigError(f"the frame holds {(k1 - k0) / size:g} flashes; a range image "
+                              f"shows one (scan.duration_s <= {pattern.cycle.period_s:g} s, "
+                              "one flash)", field="scan.duration_s")
+    elif isinstance(pattern, RasterPattern):
+        if k1 > k0 and k0 // size != (k1 - 1) // size:
+            raise ConfigError("the frame spans more than one raster frame; a range image shows "
+                              "one (scan.duration_s = the raster's frame period)",
+                              field="scan.duration_s")
+
+
+def check_layout(pattern: "ScanPattern", spans: "list[tuple[float, float]] | None" = None
+                 ) -> None:
+    """Raise :class:`ConfigError` unless ``pattern`` has a regular layout and every frame
+    ``(t_start, t_end)`` of ``spans`` fits one image (checked before any simulation)."""
     if not has_layout(pattern):
         raise ConfigError(f"scan pattern '{pattern.name}' has no regular layout: range images "
                           "exist for spinning, flash and raster sensors", field="--range-image")
+    for t_start, t_end in spans or []:
+        _check_span(pattern, *pattern.index_range(t_start, t_end))
+
+
+def range_image_paths(cloud_path: str | Path) -> tuple[Path, Path]:
+    """The two files :func:`save_range_image` writes beside ``cloud_path``."""
+    cloud_path = Path(cloud_path)
+    base = cloud_path.with_name(cloud_path.stem + ".range")
+    return base.with_name(base.name + ".npz"), base.with_name(base.name + ".png")
 
 
 def save_range_image(cloud: "PointCloud", pattern: "ScanPattern", cloud_path: str | Path, *,

@@ -6,7 +6,7 @@ import json
 import math
 import shlex
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 
@@ -45,7 +45,8 @@ def write_report(run_dir: str | Path, out_dir: str | Path | None = None, *,
                  scenario: str | Path | None = None, frame: int | None = None,
                  colour_by: str = "part", coverage_time_s: float | None = None,
                  cell_deg: float = 0.5, three_d: bool = True,
-                 overwrite: bool = False) -> Report:
+                 overwrite: bool = False,
+                 progress: Callable[[str], None] | None = None) -> Report:
     """Read a run directory and write its report figures and page.
 
     Parameters
@@ -70,6 +71,9 @@ def write_report(run_dir: str | Path, out_dir: str | Path | None = None, *,
     overwrite
         Replace report files already in ``out_dir`` (otherwise :class:`OutputError` naming
         them, before anything is drawn; other files there are never touched).
+    progress
+        Called with a short line (``"drawing Fig. 5: scan pattern"``) before each step that
+        takes a while, e.g. to show progress.
 
     Returns
     -------
@@ -89,22 +93,33 @@ def write_report(run_dir: str | Path, out_dir: str | Path | None = None, *,
     run_dir = Path(run_dir)
     out = Path(out_dir) if out_dir is not None else run_dir / "report"
     check_files(out, report_files(colour_by, three_d=three_d), overwrite=overwrite)
+    step = progress or _quiet
+    step(f"reading the run {run_dir}")
     run = load_run(run_dir, scenario=scenario, frame=frame)
     from .colouring import point_colours
 
     point_colours(run.noisy, colour_by)  # an unknown name fails before anything is drawn
     out.mkdir(parents=True, exist_ok=True)
     return build_report(run, out, colour_by=colour_by, coverage_time_s=coverage_time_s,
-                        cell_deg=cell_deg, three_d=three_d, scenario=scenario)
+                        cell_deg=cell_deg, three_d=three_d, scenario=scenario,
+                        progress=progress)
+
+
+def _quiet(line: str) -> None:
+    """No progress shown."""
 
 
 def build_report(run: Run, out: Path, *, colour_by: str = "part",
                  coverage_time_s: float | None = None, cell_deg: float = 0.5,
-                 three_d: bool = True, scenario: str | Path | None = None) -> Report:
-    """Write the figures, ``report.json`` and ``report.html`` of a loaded :class:`Run`."""
+                 three_d: bool = True, scenario: str | Path | None = None,
+                 progress: Callable[[str], None] | None = None) -> Report:
+    """Write the figures, ``report.json`` and ``report.html`` of a loaded :class:`Run`
+    (``progress`` as in :func:`write_report`)."""
     from ..patterns.fov import fov_coverage
     from . import charts
     from .stats import angular_error_components, fit_normal, range_errors
+
+    step = progress or _quiet
 
     report = Report(run.directory, out, command=_command(run, out, colour_by, coverage_time_s,
                                                          cell_deg, scenario, frame=run.frame))
@@ -115,6 +130,7 @@ def build_report(run: Run, out: Path, *, colour_by: str = "part",
     sheet, pattern = run.sensor, run.simulation.pattern
     name = FIGURE_FILES
     seg = charts.pattern_segment_s(pattern)
+    step("drawing Fig. 5: scan pattern")
     charts.pattern_figure(pattern, out / name["pattern"])
     where = ("in azimuth and elevation (a panoramic FOV, unrolled)"
              if sheet.fov_type == "panoramic" else
@@ -130,6 +146,7 @@ def build_report(run: Run, out: Path, *, colour_by: str = "part",
     angles = np.degrees(angular_error_components(run.noisy)).ravel()
     fit = fit_normal(angles)
     if fit.n and fit.sigma > 1e-9:
+        step("drawing Fig. 6: angular error")
         charts.error_histogram_figure(
             angles, fit, sheet.angular_precision_deg, out / name["angular_error"],
             title=f"Angular error injected ({sheet.name}; cf. paper Fig. 6)",
@@ -148,6 +165,7 @@ def build_report(run: Run, out: Path, *, colour_by: str = "part",
     errors_mm = 1e3 * range_errors(run.noisy)
     fit_r = fit_normal(errors_mm)
     if fit_r.n and fit_r.sigma > 1e-9:
+        step("drawing Fig. 9: range error")
         charts.error_histogram_figure(
             errors_mm, fit_r, 1e3 * sheet.range_precision_m, out / name["range_error"],
             title=f"Range error injected ({sheet.name}; cf. paper Fig. 9)",
@@ -162,6 +180,7 @@ def build_report(run: Run, out: Path, *, colour_by: str = "part",
 
     duration = coverage_time_s or (run.noisy.frame.t_end - run.noisy.frame.t_start)
     t0 = run.noisy.frame.t_start
+    step("drawing the FOV coverage map")
     cmap = charts.coverage_map(pattern, duration, cell_deg, t_start_s=t0)
     cov = fov_coverage(pattern, duration, cell_deg, t_start_s=t0)
     charts.coverage_figure(cmap, out / name["coverage"], sensor=sheet.name, duration_s=duration,
@@ -176,7 +195,7 @@ def build_report(run: Run, out: Path, *, colour_by: str = "part",
                           coverage_cell_deg=cell_deg)
 
     if three_d:
-        _three_d_figures(run, out, colour_by, report)
+        _three_d_figures(run, out, colour_by, report, step)
     order = list(FIGURE_FILES)
     report.figures.sort(key=lambda f: order.index(f.key))
     report.json = out / "report.json"
@@ -189,7 +208,8 @@ def build_report(run: Run, out: Path, *, colour_by: str = "part",
     return report
 
 
-def _three_d_figures(run: Run, out: Path, colour_by: str, report: Report) -> None:
+def _three_d_figures(run: Run, out: Path, colour_by: str, report: Report,
+                     step: Callable[[str], None]) -> None:
     from .render import RenderingUnavailable, rendering_backend
 
     try:
@@ -200,11 +220,13 @@ def _three_d_figures(run: Run, out: Path, colour_by: str, report: Report) -> Non
     from . import scene
 
     name = FIGURE_FILES
+    step("drawing Fig. 7: scene set-up (3-D)")
     scene.scene_figure(run, out / name["scene"])
     report.figures.append(Figure(
         "scene", out / name["scene"], "Scene set-up (paper Fig. 7)",
         "The targets at their poses at frame start, in the scene frame, and the LiDAR (red) "
         "with its axes (+X boresight red, +Y green, +Z blue) and its datasheet field of view."))
+    step("drawing Fig. 11: clouds without and with errors (3-D)")
     scene.errors_figure(run, out / name["errors"])
     if len(run.clean) >= 10:
         views, radius = scene.patch_views(run)
@@ -220,6 +242,7 @@ def _three_d_figures(run: Run, out: Path, colour_by: str, report: Report) -> Non
         "the surface. Bottom: the same patch edge-on with the normal axis stretched; without "
         "errors the points lie on the plane, the range error spreads them off it."))
     cloud_path = out / name["cloud"].format(colour_by=colour_by)
+    step("drawing Fig. 12: model and cloud (3-D)")
     scene.cloud_figure(run, cloud_path, colour_by)
     report.figures.append(Figure(
         "cloud", cloud_path, f"Model and point cloud, coloured by {colour_by} (paper Fig. 12)",
@@ -261,7 +284,8 @@ def _command(run: Run, out: Path, colour_by: str, coverage_time_s: float | None,
         parts += ["--coverage-time", f"{coverage_time_s:g}"]
     if cell_deg != 0.5:
         parts += ["--cell-deg", f"{cell_deg:g}"]
-    return shlex.join(parts)
+    # the page regenerates itself: its own files are there, and are the ones replaced
+    return shlex.join(parts + ["--overwrite"])
 
 
 def _jsonable(value: Any) -> Any:

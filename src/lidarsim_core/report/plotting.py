@@ -12,14 +12,44 @@ from .colouring import PointColours, part_colour
 
 
 def look(plotter: Any, focus: np.ndarray, view_from: np.ndarray, up: np.ndarray,
-          zoom: float = 1.0) -> None:
-    """Aim the active camera at ``focus`` from direction ``view_from``, then fit the scene."""
+          zoom: float = 1.0, bounds: tuple[float, ...] | None = None) -> None:
+    """Aim the active camera at ``focus`` from direction ``view_from``, then fit the scene
+    (or only ``bounds``, ``(xmin, xmax, ymin, ymax, zmin, zmax)``: what must fill the view)."""
     view_from = np.asarray(view_from, dtype=float) / np.linalg.norm(view_from)
     plotter.camera.focal_point = tuple(focus)
     plotter.camera.position = tuple(np.asarray(focus) + view_from)
     plotter.camera.up = tuple(up)
-    plotter.reset_camera()
+    if bounds is None:
+        plotter.reset_camera()
+    else:
+        plotter.reset_camera(bounds=bounds)
     plotter.camera.zoom(zoom)
+    fit_in_view(plotter, bounds)
+
+
+def fit_in_view(plotter: Any, bounds: tuple[float, ...] | None = None,
+                margin: float = 0.97) -> None:
+    """Zoom the active camera out, if needed, until every corner of ``bounds`` (default: the
+    visible actors' box) is in the view: a long target seen broadside is not cut at the edges
+    (fitting a bounding sphere to the view's height leaves a wide one cut in a narrow
+    panel)."""
+    renderer = plotter.renderer
+    if bounds is None:
+        bounds = tuple(renderer.ComputeVisiblePropBounds())
+    if not np.all(np.isfinite(bounds)) or bounds[0] > bounds[1]:
+        return
+    camera = plotter.camera
+    matrix = camera.GetCompositeProjectionTransformMatrix(renderer.GetTiledAspectRatio(), -1, 1)
+    m = np.array([[matrix.GetElement(i, j) for j in range(4)] for i in range(4)])
+    corners = np.array([[x, y, z, 1.0] for x in bounds[0:2] for y in bounds[2:4]
+                        for z in bounds[4:6]])
+    projected = corners @ m.T
+    w = projected[:, 3:4]
+    if np.any(w <= 0):
+        return
+    extent = float(np.abs(projected[:, :2] / w).max())
+    if extent > margin:
+        camera.zoom(margin / extent)
 
 
 def oblique_view(centre: np.ndarray) -> np.ndarray:
@@ -66,10 +96,14 @@ def add_coloured_points(plotter: Any, points: np.ndarray, colours: PointColours,
                      scalar_bar_args={"title": colours.label, "color": "black", "fmt": fmt,
                                       "n_labels": labels, "title_font_size": 14,
                                       "label_font_size": 12, **place})
-    if bar_below and new_bar:  # VTK writes a horizontal bar's title over its tick labels
+    if new_bar:  # VTK writes a bar's title over its end tick labels: put it clear of them
         plotter.scalar_bars[colours.label].SetTitle("")
-        plotter.add_text(colours.label, position=(0.29, 0.045), viewport=True, font_size=9,
-                         color="black").GetTextProperty().SetJustificationToRight()
+        if bar_below:  # left of the bar, a gap before its first label
+            plotter.add_text(colours.label, position=(0.25, 0.045), viewport=True, font_size=9,
+                             color="black").GetTextProperty().SetJustificationToRight()
+        else:  # above the bar, a gap over its top label
+            plotter.add_text(colours.label, position=(0.86, 0.15 + 0.6 + 0.05), viewport=True,
+                             font_size=9, color="black")
 
 
 def add_legend(plotter: Any, names: list[str], indices: Any, face: str) -> None:
