@@ -83,6 +83,15 @@ LIMITS: dict[str, Limit] = {limit.name: limit for limit in (
 MAX_RAY_INDEX = 2 ** 53
 
 
+#: Largest value any limit may be raised to (integers are exact in float64 below it): a limit
+#: of ``1e300`` is a typo, not a budget.
+MAX_LIMIT = float(2 ** 53)
+
+#: Lower ceilings where the machine itself sets one: threads beyond a few thousand do not
+#: start (or hang inside Embree's task scheduler) instead of failing cleanly.
+HARD_CEILINGS: dict[str, float] = {"threads": 4096.0}
+
+
 #: Largest seed: noise keys are unsigned 64-bit integers, and a larger seed would silently
 #: alias a smaller one.
 MAX_SEED = 2 ** 64 - 1
@@ -107,6 +116,10 @@ def limit(name: str) -> float:
     if not (math.isfinite(value) and value > 0):
         raise ConfigError(f"{spec.env}={raw!r} must be a positive number", source=ENVIRONMENT,
                           field=spec.env)
+    ceiling = HARD_CEILINGS.get(name, MAX_LIMIT)
+    if value > ceiling:
+        raise ConfigError(f"{spec.env}={raw!r} is above the largest value lidarsim accepts "
+                          f"for it, {size_text(ceiling)}", source=ENVIRONMENT, field=spec.env)
     return value
 
 
@@ -153,7 +166,7 @@ def threads_from_env(default: int) -> int:
     raw = os.environ.get("LIDARSIM_THREADS", "").strip()
     if not raw:
         return default
-    if not raw.isdigit() or int(raw) < 1:
+    if not (raw.isascii() and raw.isdigit()) or int(raw) < 1:
         raise ConfigError(f"LIDARSIM_THREADS={raw!r} must be a positive integer",
                           source=ENVIRONMENT, field="LIDARSIM_THREADS")
     value = int(raw)

@@ -229,18 +229,29 @@ def read_las_columns(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str,
     ``reflectivity`` extra bytes when there are some, the rest from the extra bytes.
     """
     from ..records.pointcloud import POINT_FIELDS
+    from .columns import check_input
 
+    path = Path(path)
+    size = check_input(path, "LAS/LAZ file")
     laspy = _laspy()
+    _check_las_header(laspy, path, size)
     try:
         data = laspy.read(str(path))
     except Exception as exc:  # laspy raises its own and many other types on bad files
-        raise ConfigError(f"cannot read LAS/LAZ: {type(exc).__name__}: {exc}",
-                          source=path) from None
+        raise ConfigError(f"cannot read LAS/LAZ: {type(exc).__name__}: "
+                          f"{' '.join(str(exc).split())[:200]}", source=path) from None
     blob = None
     for vlr in [*data.header.vlrs, *data.header.evlrs]:
-        if vlr.user_id == METADATA_USER_ID and vlr.record_id == METADATA_RECORD_ID:
-            blob = vlr.record_data
-    metadata = json.loads(bytes(blob).decode("utf-8")) if blob is not None else None
+        if getattr(vlr, "user_id", None) == METADATA_USER_ID and \
+                getattr(vlr, "record_id", None) == METADATA_RECORD_ID:
+            blob = getattr(vlr, "record_data", b"")
+    metadata = None
+    if blob is not None:
+        try:
+            metadata = json.loads(bytes(blob).decode("utf-8"))
+        except (UnicodeDecodeError, ValueError, RecursionError) as exc:
+            raise ConfigError(f"lidarsim's metadata VLR is not UTF-8 JSON ({exc})",
+                              source=path, field="VLR lidarsim/1") from None
     columns: dict[str, np.ndarray] = {
         "x": np.asarray(data.x, dtype=np.float64), "y": np.asarray(data.y, dtype=np.float64),
         "z": np.asarray(data.z, dtype=np.float64),
@@ -263,6 +274,36 @@ def read_las_columns(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str,
                            - CLASS_OFFSET).astype(np.int16)
     columns = {k: v.astype(POINT_FIELDS.get(k, v.dtype), copy=False) for k, v in columns.items()}
     return columns, metadata
+
+
+def _check_las_header(laspy: Any, path: Path, size: int) -> None:
+    """Refuse a LAS/LAZ whose header declares more points than the file can hold, before
+    laspy allocates them: an uncompressed LAS holds ``count × record length`` bytes after its
+    offset to point data; a LAZ is held to the ``rays_per_frame`` limit (a point per ray) and
+    to the ``data_bytes`` limit once decompressed."""
+    from ..base.limits import LIMITS, limit
+    from .columns import check_record_count
+
+    try:
+        with laspy.open(str(path)) as reader:
+            header = reader.header
+            count = int(header.point_count)
+            record = int(header.point_format.size)
+            offset = int(header.offset_to_point_data)
+            compressed = bool(header.are_points_compressed)
+    except Exception as exc:  # laspy raises its own and many other types on bad headers
+        raise ConfigError(f"cannot read LAS/LAZ header: {type(exc).__name__}: "
+                          f"{' '.join(str(exc).split())[:200]}", source=path) from None
+    if compressed:
+        bound = limit("data_bytes")
+        if count * record > bound:
+            raise ConfigError(f"declares {count:,} points of {record} bytes, over the limit "
+                              f"of {bound:,.0f} bytes once decompressed (set "
+                              f"{LIMITS['data_bytes'].env} to raise it)", source=path,
+                              field="point count")
+        return
+    check_record_count(count, record, max(size - offset, 0), source=path, what="points",
+                       field="point count")
 
 
 def read_las(path: str | Path) -> "PointCloud":
