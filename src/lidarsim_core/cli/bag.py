@@ -18,7 +18,7 @@ def simulate_to_bag(scenario: "Scenario", frames: Sequence[int], out: Path, *,
     """Simulate ``frames`` into the bag ``out`` with a progress bar, then say what was
     written."""
     from rich.console import Console
-    from rich.markup import escape
+    from .output import markup_safe as escape
 
     from ..base.errors import OutputError
 

@@ -15,9 +15,12 @@ from .output import console
 def fail(message: str, code: int) -> None:
     from rich.text import Text
 
-    # a Text is never parsed for markup: file names, keys and values are printed verbatim
-    console(stderr=True).print(Text.assemble(("error:", "bold red"), " ", message),
-                                soft_wrap=True)
+    from ..base.terminal import terminal_safe
+
+    # a Text is never parsed for markup: file names, keys and values are printed verbatim,
+    # with control characters shown as escapes (a name holding ESC [2J clears no screen)
+    console(stderr=True).print(Text.assemble(("error:", "bold red"), " ",
+                                             terminal_safe(message)), soft_wrap=True)
     raise typer.Exit(code)
 
 

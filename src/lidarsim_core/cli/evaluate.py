@@ -103,7 +103,9 @@ def _evaluate(dataset: Path, estimator: str, out: Path, option: list[str], split
     median = "no valid estimate" if t is None else \
         f"median errors {t:.4g} m, {r:.4g}°, SPEED score {s:.4g}; " \
         f"{overall['within_rate'] * 100:.3g} % within {thresholds[0]:g} m and {thresholds[1]:g}°"
+    from .output import markup_safe
+
     console().print(
-        f"evaluate {estimator}: {result.frames_total} frames ({result.frames_evaluated} run, "
+        f"evaluate {markup_safe(estimator)}: {result.frames_total} frames ({result.frames_evaluated} run, "
         f"{result.frames_skipped} already done), {overall['successes']} with an estimate; "
-        f"{median} → {result.out / 'report.html'}")
+        f"{median} → {markup_safe(result.out / 'report.html')}")
