@@ -156,3 +156,112 @@ def test_view_names_the_malformed_file(clouds, tmp_path, capsys):
     path.write_bytes(CASES["ply"](clouds["ply"])["negative count"][0])
     refused(["view", path, "--screenshot", tmp_path / "shot.png"], capsys, str(path), "'-5'")
     assert not (tmp_path / "shot.png").exists()
+
+
+# ---- datasets trusted only after verification ----------------------------------------------
+SCENE = {
+    "seed": 3,
+    "sensor": {"datasheet": "livox-mid70-rose", "pose": {"position_m": [0, 0, 0]}},
+    "targets": [{"name": "box", "mesh": {"model": "box", "options": {"extents_m": [2, 2, 2]}},
+                 "pose": {"position_m": [12, 0, 0]}}],
+    "scan": {"duration_s": 0.02, "frame_period_s": 0.1, "frames": 3},
+    "backend": "numpy",
+}
+
+
+@pytest.fixture(scope="module")
+def dataset_dir(tmp_path_factory) -> Path:
+    from lidarsim_core.dataset import generate_dataset
+
+    root = tmp_path_factory.mktemp("ds27")
+    scene = root / "scene.yaml"
+    scene.write_text(yaml.safe_dump(SCENE, sort_keys=False))
+    generate_dataset(scene, root / "ds", quiet=True)
+    return root / "ds"
+
+
+@pytest.fixture()
+def ds(dataset_dir, tmp_path) -> Path:
+    """A private copy of the dataset to break."""
+    copy = tmp_path / "ds"
+    shutil.copytree(dataset_dir, copy, symlinks=True)
+    return copy
+
+
+def _manifest(ds: Path) -> dict:
+    return json.loads((ds / "manifest.json").read_text())
+
+
+def _frame_files(ds: Path) -> list[Path]:
+    return [ds / f["file"] for f in _manifest(ds)["sequences"][0]["frames"]]
+
+
+def _edit_manifest(ds: Path, change) -> None:
+    data = _manifest(ds)
+    change(data)
+    (ds / "manifest.json").write_text(json.dumps(data))
+
+
+def _edit_poses(ds: Path, change) -> None:
+    path = ds / "poses.json"
+    data = json.loads(path.read_text())
+    change(data)
+    path.write_text(json.dumps(data))  # json writes NaN as NaN, as a careless tool would
+
+
+def _evaluate_refused(ds: Path, capsys, *fragments: str, extra: tuple = ()) -> None:
+    pytest.importorskip("matplotlib")
+    out = ds.parent / "ev"
+    refused(["evaluate", ds, "--estimator", "gt_noise", "--out", out, "--quiet", *extra],
+            capsys, *fragments)
+    assert not out.exists()  # nothing half-written
+
+
+def test_evaluate_refuses_a_frame_outside_the_dataset(ds, capsys):
+    (ds.parent / "outside.npz").write_bytes(_frame_files(ds)[0].read_bytes())
+
+    def out(data):
+        data["sequences"][0]["frames"][0]["file"] = "../outside.npz"
+    _edit_manifest(ds, out)
+    _evaluate_refused(ds, capsys, "manifest.json", "sequences.0.frames.0.file",
+                      "not a path inside the dataset")
+
+
+def test_evaluate_refuses_a_symbolic_link_out_of_the_dataset(ds, capsys):
+    first = _frame_files(ds)[0]
+    outside = ds.parent / "elsewhere.npz"
+    shutil.copy(first, outside)
+    first.unlink()
+    first.symlink_to(outside)
+    _evaluate_refused(ds, capsys, "manifest.json", "symbolic link out of the dataset")
+
+
+def test_evaluate_verifies_checksums_and_can_skip_them(ds, capsys):
+    frames = _frame_files(ds)
+    shutil.copy(frames[2], frames[0])  # frame 2's cloud in frame 0's file
+    _evaluate_refused(ds, capsys, str(frames[0]), "SHA-256 differs")
+    code, _, err = run(["evaluate", ds, "--estimator", "gt_noise", "--out", ds.parent / "ev2",
+                        "--quiet", "--no-verify"], capsys)
+    assert code == 0, err  # the opt-out: the user chose speed over the check
+
+
+def test_evaluate_refuses_a_truncated_frame_before_writing(ds, capsys):
+    frame = _frame_files(ds)[1]
+    frame.write_bytes(frame.read_bytes()[:100])
+    _evaluate_refused(ds, capsys, str(frame), "SHA-256 differs")
+
+
+@pytest.mark.parametrize("change, field, fragment", [
+    (lambda d: d["frames"][1].update(t_start_s=float("nan")), "frames.1.t_start_s",
+     "not a finite number"),
+    (lambda d: d["frames"][0]["targets"][0].update(q_target_in_sensor=[0, 0, 0, 0]),
+     "frames.0.targets.0.q_target_in_sensor", "not a unit quaternion"),
+    (lambda d: d["frames"][2]["targets"][0].update(r_target_in_sensor_m=[float("nan"), 0, 0]),
+     "frames.2.targets.0.r_target_in_sensor_m", "not finite"),
+    (lambda d: d.update(target_names=[]), "target_names", "lists no targets"),
+    (lambda d: d["frames"][0].update(targets=[]), "frames.0.targets", "0 target records"),
+    (lambda d: d["frames"][1].update(t_end_s=-1.0), "frames.1.t_end_s", "before it starts"),
+])
+def test_evaluate_validates_poses_json_naming_it(ds, capsys, change, field, fragment):
+    _edit_poses(ds, change)
+    _evaluate_refused(ds, capsys, "poses.json", field, fragment, extra=("--no-verify",))
