@@ -31,6 +31,9 @@ def atomic_output(path: str | Path, *, overwrite: bool = True) -> Iterator[IO[by
         raise OutputError(f"output directory does not exist: {parent}", source=path)
     if os.path.lexists(path) and not overwrite:  # a symbolic link, even a looping one, too
         raise OutputError("output file exists (use --overwrite to replace it)", source=path)
+    from .outputs import check_replaceable
+
+    check_replaceable(path)  # a device, FIFO or socket is never replaced by a regular file
     tmp: Path | None = parent / f".{path.name}.{secrets.token_hex(6)}.part"
     try:
         try:

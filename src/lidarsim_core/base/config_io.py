@@ -67,6 +67,9 @@ def check_input_file(path: str | Path, what: str = "file", *, limit_name: str = 
     if kind is not None:
         raise error(f"{prefix}is {kind}, not a {what}" if kind[0] == "a" else
                     f"{prefix}{kind}", **where)
+    from .outputs import note_input
+
+    note_input(path, info)  # an output may never replace it (lidarsim_core.base.outputs)
     bound = limit(limit_name)
     if info.st_size > bound:
         raise error(f"{prefix}{what} is {info.st_size:,} bytes, over the limit of "

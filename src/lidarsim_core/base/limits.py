@@ -73,6 +73,10 @@ LIMITS: dict[str, Limit] = {limit.name: limit for limit in (
     Limit("config_bytes", 64 * 2 ** 20, "LIDARSIM_MAX_CONFIG_BYTES", "bytes",
           "size of a text input: scenario, datasheet, dataset file, keyframes, CSV pattern "
           "table, sidecar or run-directory JSON"),
+    Limit("bag_frame_points", 4e6, "LIDARSIM_MAX_BAG_FRAME_POINTS", "rays",
+          "rays of one frame written into a ROS 2 bag: a PointCloud2 message holds the "
+          "whole frame (about 100 bytes a point, several copies while serialised), so a "
+          "bag cannot stream a frame the way point-cloud files do"),
     Limit("data_bytes", 4 * 2 ** 30, "LIDARSIM_MAX_DATA_BYTES", "bytes",
           "size of a binary input: mesh, NPY pattern table, NPZ cloud"),
 )}

@@ -67,12 +67,13 @@ def run_guarded(func: Callable[[], Any]) -> Any:
     """
     from ..base.errors import PluginError
     from ..base.numerics import quiet_numerics
+    from ..base.outputs import tracking_inputs
     from ..base.oserrors import os_error_line
     from ..base.signals import SIGTERM_EXIT_CODE, Terminated, interrupt_behind
 
     try:
         try:
-            with quiet_numerics():
+            with quiet_numerics(), tracking_inputs():  # outputs never replace inputs
                 return func()
         except Exception as exc:  # an interrupt surfacing through a compiled kernel
             interrupt = interrupt_behind(exc)

@@ -73,7 +73,7 @@ def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwri
         from .bag import simulate_to_bag
 
         return simulate_to_bag(scenario, frames, out, overwrite=overwrite, livox=livox,
-                               range_image=range_image)
+                               range_image=range_image, source=path)
     if livox:
         raise OutputError("--livox applies to a ROS 2 bag (--out run.mcap)", source=out)
     templated = has_frame_field(out)
@@ -85,6 +85,10 @@ def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwri
     for target in targets:  # every output is checked before any work (lidarsim_core.base.outputs)
         check_file(target, overwrite=overwrite)
     sim = Simulation(scenario)  # guards third-party components itself
+    from ..base.outputs import check_not_input
+
+    for target in targets:  # the meshes and keyframes the simulation has just read too
+        check_not_input(target)
     if range_image:
         from ..io.rangeimage import check_layout
 
