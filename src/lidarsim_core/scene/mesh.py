@@ -187,12 +187,23 @@ def load_mesh_file(path: str | Path, *, scale: float = 1.0, source: str | None =
     suffix = path.suffix.lower()
     # OBJ: one geometry per 'o' object and 'g' group (trimesh merges them by material else)
     options = {"split_objects": True, "split_groups": True} if suffix == ".obj" else {}
+    from .references import BoundedResolver  # imports trimesh: loaded with it, lazily
+
+    # referenced files (mtllib, textures, glTF URIs) through the same bounded reader
+    resolver = BoundedResolver(path, where)
     try:
         with warnings.catch_warnings(), np.errstate(all="ignore"):
             warnings.simplefilter("ignore")  # overflowing coordinates are refused below
-            loaded = trimesh.load(str(path), process=False, **options)
+            loaded = trimesh.load(str(path), process=False, resolver=resolver, **options)
+    except MeshError:
+        raise
     except Exception as exc:  # trimesh raises many types for garbage input
-        raise MeshError(f"cannot read mesh: {type(exc).__name__}: {exc}", source=where) from None
+        if resolver.refused:
+            raise MeshError(resolver.refused[0], source=where) from None
+        raise MeshError(f"cannot read mesh: {type(exc).__name__}: "
+                        f"{' '.join(str(exc).split())[:200]}", source=where) from None
+    if resolver.refused:  # trimesh loads geometry without a material it could not read
+        raise MeshError(resolver.refused[0], source=where)
     parts: list[tuple[str, np.ndarray, np.ndarray, Any]] = []
     if isinstance(loaded, trimesh.Trimesh) and suffix == ".ply":
         parts = _ply_face_parts(path, loaded)
