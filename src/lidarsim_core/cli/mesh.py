@@ -79,10 +79,11 @@ def _mesh(source: str, out: Path, option: list[str], fmt: str, overwrite: bool) 
         model = registry.get("target_model", source, field="SOURCE")
         targets = [(source, model.from_config(_parse_options(option), field="--option").mesh())]
     jobs = _outputs(out, [name for name, _ in targets], suffix)
-    for (name, mesh_), target in zip(targets, jobs):
-        if target.exists() and not overwrite:
-            raise OutputError("output file exists (use --overwrite to replace it)",
-                              source=target)
+    from ..base.outputs import check_group
+    from ..io.meshfile import mesh_output_files
+
+    # every file of every target (an OBJ's MTL too) before the first is written
+    check_group([f for target in jobs for f in mesh_output_files(target)], overwrite=overwrite)
     for (name, mesh_), target in zip(targets, jobs):
         export_mesh(mesh_, target, overwrite=overwrite)
         typer.echo(f"{name}: {mesh_.n_faces:,} triangles, {len(mesh_.part_names)} parts "

@@ -84,6 +84,12 @@ def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwri
     exporter = exporter_for(targets[0], fmt)  # unknown format: fail before simulating
     for target in targets:  # every output is checked before any work (lidarsim_core.base.outputs)
         check_file(target, overwrite=overwrite)
+    if range_image:  # the cloud and its range image are one group: all checked, then written
+        from ..base.outputs import check_group
+        from ..io.rangeimage import range_image_files
+
+        check_group([f for target in targets for f in range_image_files(target)],
+                    overwrite=overwrite)
     sim = Simulation(scenario)  # guards third-party components itself
     from ..base.outputs import check_not_input
 

@@ -225,6 +225,14 @@ def check_layout(pattern: "ScanPattern") -> None:
                           "exist for spinning, flash and raster sensors", field="--range-image")
 
 
+def range_image_files(cloud_path: str | Path) -> list[Path]:
+    """The two files :func:`save_range_image` writes beside ``cloud_path`` (checked with the
+    cloud, as a group, before anything is simulated)."""
+    cloud_path = Path(cloud_path)
+    base = cloud_path.with_name(cloud_path.stem + ".range")
+    return [base.with_name(base.name + ".npz"), base.with_name(base.name + ".png")]
+
+
 def save_range_image(cloud: "PointCloud", pattern: "ScanPattern", cloud_path: str | Path, *,
                      overwrite: bool = True) -> tuple[Path, Path]:
     """Write the range image of ``cloud`` beside its file: ``cloud_0001.ply`` gives
