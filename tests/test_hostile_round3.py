@@ -265,3 +265,279 @@ def test_evaluate_refuses_a_truncated_frame_before_writing(ds, capsys):
 def test_evaluate_validates_poses_json_naming_it(ds, capsys, change, field, fragment):
     _edit_poses(ds, change)
     _evaluate_refused(ds, capsys, "poses.json", field, fragment, extra=("--no-verify",))
+
+
+# ---- internal errors that are user errors --------------------------------------------------
+@pytest.mark.parametrize("detail", ["99", "-1", "true"])
+def test_mesh_detail_out_of_range_is_one_line(tmp_path, capsys, detail):
+    refused(["mesh", "envisat", "--option", f"detail={detail}", "--out", tmp_path / "e.obj"],
+            capsys, "--option.detail", "integer 0..32")
+    assert not list(tmp_path.glob("e.*"))
+
+
+@pytest.mark.parametrize("variable, value, fragment", [
+    ("LIDARSIM_MAX_CONFIG_BYTES", "1e300", "largest value lidarsim accepts"),
+    ("LIDARSIM_MAX_THREADS", "100000", "largest value lidarsim accepts"),
+    ("LIDARSIM_THREADS", "٣", "positive integer"),  # a Unicode digit int() would take
+])
+def test_environment_values_are_validated(tmp_path, capsys, monkeypatch, variable, value,
+                                          fragment):
+    monkeypatch.setenv(variable, value)
+    if variable == "LIDARSIM_MAX_THREADS":
+        monkeypatch.setenv("LIDARSIM_THREADS", "100000")
+    refused(["simulate", scenario(tmp_path), "--out", "o.ply"], capsys, "environment",
+            variable, fragment)
+    assert not (tmp_path / "o.ply").exists()
+
+
+def test_a_raised_config_limit_reads_only_the_files_size(tmp_path, monkeypatch):
+    """``read_bytes_file`` asks for the file's size + 1 byte, never the bound: a 4 GiB bound
+    under a 1 GiB address space still reads a small file."""
+    import subprocess
+
+    path = scenario(tmp_path)
+    code = ("import resource\n"
+            "resource.setrlimit(resource.RLIMIT_AS, (2**30, 2**30))\n"
+            "from lidarsim_core.base.config_io import read_bytes_file\n"
+            f"print(len(read_bytes_file({str(path)!r})))\n")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path),
+           "LIDARSIM_MAX_CONFIG_BYTES": str(2 ** 33)}
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         env=env, timeout=120)
+    assert res.stdout.strip() == str(path.stat().st_size), res.stderr
+
+
+def _bag_scene(tmp_path: Path, **scan) -> Path:
+    data = json.loads(json.dumps(BASE))
+    data["scan"].update(scan)
+    path = tmp_path / "bag.yaml"
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+def test_bag_start_time_beyond_ros_time_is_one_line(tmp_path, capsys):
+    pytest.importorskip("rosbags")
+    refused(["simulate", _bag_scene(tmp_path, start_s=3e9), "--out", tmp_path / "b.mcap"],
+            capsys, "bag.yaml", "scan.start_s", "signed 32-bit")
+    assert not list(tmp_path.glob("*b.mcap*"))
+
+
+def test_bag_of_a_twelve_million_point_frame_is_refused_by_size(tmp_path, capsys):
+    """A ROS message holds a whole frame: 12 M rays (MID-70, 120 s) are refused by the
+    ``bag_frame_points`` bound before anything is simulated."""
+    pytest.importorskip("rosbags")
+    refused(["simulate", _bag_scene(tmp_path, duration_s=120.0), "--out", tmp_path / "b.mcap"],
+            capsys, "bag.yaml", "12,000,000 rays", "LIDARSIM_MAX_BAG_FRAME_POINTS")
+    assert not list(tmp_path.glob("*b.mcap*"))
+
+
+def test_huge_divergence_and_retro_reflectivity_are_refused(tmp_path, capsys):
+    data = json.loads(json.dumps(BASE))
+    data["sensor"]["beam"] = {"divergence_deg": [1e308, 1e308]}
+    path = tmp_path / "div.yaml"
+    path.write_text(yaml.safe_dump(data))
+    refused(["simulate", path, "--out", "o.ply"], capsys, "div.yaml",
+            "sensor.beam.divergence_deg", "wider than 90")
+    data = json.loads(json.dumps(BASE))
+    name = data["targets"][0]["mesh"]["model"]
+    data["targets"][0]["materials"] = {name: {"retro_reflectivity": 1e308}}
+    path = tmp_path / "retro.yaml"
+    path.write_text(yaml.safe_dump(data))
+    refused(["simulate", path, "--out", "o.ply"], capsys, "retro.yaml", "retro_reflectivity")
+    assert not (tmp_path / "o.ply").exists()
+
+
+# ---- hangs: files a mesh references --------------------------------------------------------
+TRIANGLE = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"
+
+
+def _mesh_scene(tmp_path: Path, mesh: Path) -> Path:
+    data = json.loads(json.dumps(BASE))
+    data["targets"][0]["mesh"] = {"path": str(mesh)}
+    return scenario(tmp_path, "mesh_scene.yaml", targets=data["targets"])
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="FIFOs")
+@pytest.mark.parametrize("kind", ["mtllib fifo", "texture fifo", "mtllib outside",
+                                  "mtllib absolute", "gltf buffer fifo", "gltf buffer url"])
+def test_files_a_mesh_references_go_through_the_bounded_reader(tmp_path, kind):
+    from lidarsim_core.base.errors import MeshError
+    from lidarsim_core.scene.mesh import load_mesh_file
+
+    folder = tmp_path / "model"
+    folder.mkdir()
+    if kind.startswith("gltf"):
+        uri = "buffer.bin" if kind.endswith("fifo") else "http://example.invalid/b.bin"
+        if kind.endswith("fifo"):
+            os.mkfifo(folder / "buffer.bin")
+        gltf = {"asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}],
+                "nodes": [{"mesh": 0, "name": "part"}],
+                "meshes": [{"primitives": [{"attributes": {"POSITION": 0}}]}],
+                "buffers": [{"uri": uri, "byteLength": 36}],
+                "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 36}],
+                "accessors": [{"bufferView": 0, "componentType": 5126, "count": 3,
+                               "type": "VEC3", "min": [0, 0, 0], "max": [1, 1, 0]}]}
+        mesh = folder / "m.gltf"
+        mesh.write_text(json.dumps(gltf))
+        fragment = "buffer.bin" if kind.endswith("fifo") else "URI"
+    else:
+        mtl = {"mtllib fifo": "m.mtl", "texture fifo": "m.mtl",
+               "mtllib outside": "../secret.mtl", "mtllib absolute": "/etc/hostname"}[kind]
+        (tmp_path / "secret.mtl").write_text("newmtl x\nKd 1 0 0\n")
+        if kind == "mtllib fifo":
+            os.mkfifo(folder / "m.mtl")
+        elif kind == "texture fifo":
+            (folder / "m.mtl").write_text("newmtl red\nKd 1 0 0\nmap_Kd tex.png\n")
+            os.mkfifo(folder / "tex.png")
+        mesh = folder / "m.obj"
+        mesh.write_text(f"mtllib {mtl}\nusemtl red\n{TRIANGLE}")
+        fragment = {"mtllib fifo": "named pipe", "texture fifo": "named pipe",
+                    "mtllib outside": "outside the mesh's folder",
+                    "mtllib absolute": "outside the mesh's folder"}[kind]
+    with pytest.raises(MeshError) as caught:  # a FIFO would block forever: the bound holds
+        load_mesh_file(mesh)
+    assert str(caught.value).startswith(str(mesh)) and fragment in str(caught.value)
+
+
+def test_an_obj_without_its_mtl_still_loads(tmp_path):
+    from lidarsim_core.scene.mesh import load_mesh_file
+
+    (tmp_path / "m.obj").write_text(f"mtllib missing.mtl\n{TRIANGLE}")
+    assert len(load_mesh_file(tmp_path / "m.obj").faces) == 1
+
+
+# ---- inputs and devices never replaced -----------------------------------------------------
+@pytest.mark.parametrize("command", ["simulate", "poses", "bag"])
+def test_an_output_that_is_an_input_is_refused_even_with_overwrite(tmp_path, capsys, command):
+    path = scenario(tmp_path)
+    before = path.read_bytes()
+    if command == "simulate":
+        argv = ["simulate", path, "--out", path, "--format", "ply", "--overwrite"]
+    elif command == "poses":
+        argv = ["poses", path, "--out", tmp_path / "link.json", "--overwrite"]
+        (tmp_path / "link.json").symlink_to(path)  # the input under another name
+    else:
+        pytest.importorskip("rosbags")
+        argv = ["simulate", path, "--out", path, "--format", "mcap", "--overwrite"]
+    refused(argv, capsys, "input of this command", "even with --overwrite")
+    assert path.read_bytes() == before
+
+
+def test_an_output_that_is_a_mesh_the_scenario_reads_is_refused(tmp_path, capsys):
+    mesh = tmp_path / "m.ply"
+    (tmp_path / "m.obj").write_text(TRIANGLE)
+    from lidarsim_core.scene.mesh import load_mesh_file
+    from lidarsim_core.io.meshfile import export_mesh
+
+    export_mesh(load_mesh_file(tmp_path / "m.obj"), mesh)
+    before = mesh.read_bytes()
+    path = _mesh_scene(tmp_path, mesh)
+    refused(["simulate", path, "--out", mesh, "--overwrite"], capsys, "input of this command")
+    assert mesh.read_bytes() == before
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/null"), reason="no /dev/null")
+def test_overwrite_replaces_regular_files_only(tmp_path, capsys):
+    path = scenario(tmp_path)
+    refused(["simulate", path, "--out", "/dev/null", "--format", "ply", "--overwrite"], capsys,
+            "/dev/null", "is a device", "regular files only")
+    assert stat.S_ISCHR(os.stat("/dev/null").st_mode)
+    os.mkfifo(tmp_path / "pipe.ply")
+    refused(["simulate", path, "--out", tmp_path / "pipe.ply", "--overwrite"], capsys,
+            "named pipe")
+    assert stat.S_ISFIFO(os.stat(tmp_path / "pipe.ply").st_mode)
+
+
+# ---- terminal injection ---------------------------------------------------------------------
+ESC = "\x1b[2J\x1b]0;owned\x07"
+
+
+def test_the_error_line_escapes_control_characters(capsys):
+    from lidarsim_core.cli.errors import fail_code
+
+    assert fail_code(f"target 'evil{ESC}' is bad", 2) == 2
+    err = capsys.readouterr().err
+    assert "\x1b" not in err and "\x07" not in err
+    assert "evil\\x1b[2J\\x1b]0;owned\\x07" in err
+
+
+def test_part_names_from_a_mesh_file_are_escaped_in_listings(tmp_path, capsys):
+    (tmp_path / "m.obj").write_text(f"o evil{ESC}\n{TRIANGLE}o other\nv 0 0 1\nv 1 0 1\n"
+                                    "v 0 1 1\nf 4 5 6\n")
+    path = _mesh_scene(tmp_path, tmp_path / "m.obj")
+    code, out, err = run(["mesh", path, "--out", tmp_path / "out.ply"], capsys)
+    assert code == 0, err
+    assert "\x1b" not in out + err and "evil\\x1b[2J" in out
+
+
+def test_control_characters_in_options_and_plugins_are_escaped(tmp_path, capsys, monkeypatch):
+    line = refused(["mesh", "envisat", "--option", f"det{ESC}ail=3", "--out", "e.obj"],
+                   capsys)
+    assert "\\x1b" in line
+    monkeypatch.setenv("LIDARSIM_THREADS", f"4{ESC}")
+    line = refused(["simulate", scenario(tmp_path), "--out", "o.ply"], capsys)
+    assert "\\x1b" in line
+
+
+def test_terminal_safe_shows_every_control_as_an_escape():
+    from lidarsim_core.base.terminal import terminal_safe
+
+    assert terminal_safe("a\x1b[2Jb\x9b\u202e\r\n") == "a\\x1b[2Jb\\x9b\\u202e\\x0d\\x0a"
+    assert terminal_safe("Envisat — ASAR é 日本") == "Envisat — ASAR é 日本"
+
+
+def test_listings_escape_names(capsys):
+    from lidarsim_core.cli.output import Column, plain_table, print_table
+
+    assert "\x1b" not in plain_table([Column("name")], [[f"x{ESC}"]])
+    print_table([Column("name")], [[f"x{ESC}"]])
+    assert "\x1b" not in capsys.readouterr().out
+
+
+# ---- partial files ---------------------------------------------------------------------------
+def test_mesh_group_is_checked_before_any_file_is_written(tmp_path, capsys):
+    (tmp_path / "e.mtl").write_text("mine")
+    refused(["mesh", "envisat", "--option", "detail=coarse", "--out", tmp_path / "e.obj"],
+            capsys, "e.mtl", "exists")
+    assert not (tmp_path / "e.obj").exists()
+    assert (tmp_path / "e.mtl").read_text() == "mine"
+
+
+def test_mesh_on_a_full_disk_leaves_neither_file(tmp_path, capsys, monkeypatch):
+    import errno
+
+    real = os.fsync
+    calls = []
+
+    def full(fd):
+        calls.append(fd)
+        if len(calls) == 2:  # the second file (the OBJ after its MTL) hits a full disk
+            raise OSError(errno.ENOSPC, "No space left on device")
+        return real(fd)
+
+    monkeypatch.setattr(os, "fsync", full)
+    refused(["mesh", "envisat", "--option", "detail=coarse", "--out", tmp_path / "e.obj"],
+            capsys, "no space left")
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+def test_range_image_group_is_checked_before_the_cloud_is_written(tmp_path, capsys):
+    data = json.loads(json.dumps(BASE))
+    data["sensor"] = {"datasheet": "velodyne-vlp16", "pose": {"position_m": [0, 0, 0]}}
+    data["scan"] = {"duration_s": 0.05}
+    path = tmp_path / "spin.yaml"
+    path.write_text(yaml.safe_dump(data))
+    (tmp_path / "c.range.png").write_bytes(b"mine")
+    refused(["simulate", path, "--out", tmp_path / "c.ply", "--range-image"], capsys,
+            "c.range.png", "exists")
+    assert not (tmp_path / "c.ply").exists()
+
+
+def test_no_progress_bar_when_stderr_is_not_a_terminal(tmp_path, capsys):
+    """A failing dataset run prints one line: no bar drawn around it in a pipe."""
+    data = json.loads(json.dumps(BASE))
+    data["scan"] = {"duration_s": 0.01, "frame_period_s": 0.1, "frames": 2}
+    path = tmp_path / "seq.yaml"
+    path.write_text(yaml.safe_dump(data))
+    code, _, err = run(["dataset", path, "--out", tmp_path / "ds"], capsys)
+    assert code == 0 and "━" not in err and "frames/s" not in err, err

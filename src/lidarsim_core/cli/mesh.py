@@ -15,6 +15,8 @@ from typing import Any
 
 import typer
 
+from ..base.terminal import terminal_safe
+
 from .app import app
 from .errors import run_guarded
 
@@ -86,8 +88,9 @@ def _mesh(source: str, out: Path, option: list[str], fmt: str, overwrite: bool) 
     check_group([f for target in jobs for f in mesh_output_files(target)], overwrite=overwrite)
     for (name, mesh_), target in zip(targets, jobs):
         export_mesh(mesh_, target, overwrite=overwrite)
-        typer.echo(f"{name}: {mesh_.n_faces:,} triangles, {len(mesh_.part_names)} parts "
-                   f"({', '.join(mesh_.part_names)}) → {target}")
+        typer.echo(terminal_safe(f"{name}: {mesh_.n_faces:,} triangles, "
+                                 f"{len(mesh_.part_names)} parts "
+                                 f"({', '.join(mesh_.part_names)}) → {target}"))
 
 
 def _outputs(out: Path, names: list[str], suffix: str) -> list[Path]:

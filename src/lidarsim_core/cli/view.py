@@ -15,6 +15,8 @@ from typing import Any, Optional
 
 import typer
 
+from ..base.terminal import terminal_safe
+
 from .app import app
 from .errors import run_guarded
 
@@ -121,8 +123,8 @@ def _view(path: Path, color_by: str, screenshot: Path | None, frame: int | None,
 
     save_plotter(plotter, screenshot)
     n = sum(len(c) for _, c in clouds)
-    typer.echo(f"wrote {screenshot} ({n:,} points coloured by {color_by}"
-               f"{f', {len(meshes)} target mesh(es)' if meshes else ''})")
+    typer.echo(terminal_safe(f"wrote {screenshot} ({n:,} points coloured by {color_by}"
+                             f"{f', {len(meshes)} target mesh(es)' if meshes else ''})"))
 
 
 def _draw(plotter: Any, clouds: list[tuple[Path, Any]], colours: list[Any],

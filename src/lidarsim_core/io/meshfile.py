@@ -82,16 +82,14 @@ def _obj(mesh: Mesh, path: Path, overwrite: bool) -> None:
         _scene(mesh, materials=True), include_normals=False, include_texture=True,
         return_texture=True, write_texture=False, mtl_name=mtl_name, digits=10,
         header="lidarsim target mesh, body frame, metres")
-    from contextlib import ExitStack
+    from ..base.atomic import atomic_group
 
-    # every file is complete in its temporary before any is renamed: a full disk leaves
-    # neither the OBJ nor its MTL
-    with ExitStack() as group:
-        for name, data in files.items():  # the MTL file (no textures)
-            group.enter_context(atomic_output(path.with_name(name),
-                                              overwrite=overwrite)).write(data)
-        group.enter_context(atomic_output(path, overwrite=overwrite)).write(
-            text.encode("utf-8"))
+    # every file is complete and on disk before any is renamed: a full disk leaves neither
+    # the OBJ nor its MTL (the MTL, then the OBJ)
+    names = [path.with_name(name) for name in files] + [path]
+    with atomic_group(names, overwrite=overwrite) as streams:
+        for stream, data in zip(streams, [*files.values(), text.encode("utf-8")]):
+            stream.write(data)
 
 
 def _ply(mesh: Mesh, path: Path, overwrite: bool) -> None:
