@@ -541,3 +541,50 @@ def test_no_progress_bar_when_stderr_is_not_a_terminal(tmp_path, capsys):
     path.write_text(yaml.safe_dump(data))
     code, _, err = run(["dataset", path, "--out", tmp_path / "ds"], capsys)
     assert code == 0 and "━" not in err and "frames/s" not in err, err
+
+
+# ---- memory: dataset reruns under a 4 GiB address space ------------------------------------
+def _limited(args: list, cwd: Path) -> "subprocess.CompletedProcess[str]":
+    """``lidarsim ARGS`` in a subprocess whose address space is capped at 4 GiB
+    (``ulimit -v 4194304``, set with ``resource.setrlimit`` before it starts)."""
+    import resource
+    import subprocess
+
+    def cap() -> None:
+        resource.setrlimit(resource.RLIMIT_AS, (4 * 2 ** 30, 4 * 2 ** 30))
+
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path),
+           "LIDARSIM_DISABLE_PLUGIN_AUTOLOAD": "1", "LIDARSIM_THREADS": "2"}
+    code = "import sys; from lidarsim_core.cli import main; main(sys.argv[1:])"
+    return subprocess.run([sys.executable, "-c", code, *map(str, args)], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=300, preexec_fn=cap)
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="RLIMIT_AS and flock semantics")
+def test_dataset_reruns_work_under_a_4_gib_address_space(tmp_path):
+    import fcntl
+
+    data = json.loads(json.dumps(BASE))
+    data["scan"] = {"duration_s": 0.01, "frame_period_s": 0.1, "frames": 2}
+    scene = tmp_path / "seq.yaml"
+    scene.write_text(yaml.safe_dump(data))
+    out = tmp_path / "ds"
+    first = _limited(["dataset", scene, "--out", out], tmp_path)
+    assert first.returncode == 0, first.stderr
+    # resume: every frame already done, the manifest read back under the cap
+    again = _limited(["dataset", scene, "--out", out], tmp_path)
+    assert again.returncode == 0, again.stderr
+    assert "2 already done" in again.stdout and "MemoryError" not in again.stderr
+    # concurrent-run refusal: another process holds the lock
+    with open(out / ".lidarsim-dataset.lock", "a+") as held:
+        fcntl.flock(held.fileno(), fcntl.LOCK_EX | fcntl.LOCK_NB)
+        busy = _limited(["dataset", scene, "--out", out], tmp_path)
+    assert busy.returncode == 2 and "another 'lidarsim dataset' run" in busy.stderr, \
+        busy.stderr
+    assert len(busy.stderr.strip().splitlines()) == 1
+    # corrupt-manifest refusal
+    (out / "manifest.json").write_text('{"format": ')
+    corrupt = _limited(["dataset", scene, "--out", out], tmp_path)
+    assert corrupt.returncode == 2, corrupt.stderr
+    assert "manifest.json" in corrupt.stderr and "MemoryError" not in corrupt.stderr
+    assert len(corrupt.stderr.strip().splitlines()) == 1
