@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import struct
 import zipfile
+import zlib
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Iterator
@@ -58,7 +59,9 @@ def cloud_from_columns(columns: dict[str, np.ndarray], metadata: dict[str, Any] 
 #: :func:`reader_errors` turns them into one :class:`ConfigError` naming the file.
 MALFORMED = (ValueError, KeyError, IndexError, TypeError, EOFError, OverflowError,
              UnicodeDecodeError, LookupError, AttributeError, zipfile.BadZipFile,
-             zipfile.LargeZipFile, struct.error, RecursionError)
+             zipfile.LargeZipFile, struct.error, RecursionError, zlib.error,
+             NotImplementedError,  # a zip member of an unsupported compression method
+             RuntimeError)  # an encrypted zip member
 
 
 @contextmanager
