@@ -15,6 +15,7 @@ NaN, zero quaternions, wrong types).
 
 from __future__ import annotations
 
+import copy
 import io
 import json
 import re
@@ -180,7 +181,8 @@ def reader_case(draw: Any, base: Path, seeds: dict[str, Any]) -> Case:
             path = draw(st.sampled_from(paths))
             pool = PATH_VALUES + VALUES if path.endswith(("file", "root", "poses",
                                                           "scenario")) else VALUES
-            document = set_path(document, path, draw(st.sampled_from(pool)))
+            # a copy: the pools' lists and mappings are shared by every case
+            document = set_path(document, path, copy.deepcopy(draw(st.sampled_from(pool))))
         (root / name).write_text(json.dumps(document))
     else:
         (root / name).write_bytes(draw(mutate_bytes((root / name).read_bytes(), ".obj")))

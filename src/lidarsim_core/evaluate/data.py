@@ -293,7 +293,9 @@ def open_dataset(root: str | Path, split: str | None = None, *, verify: bool = T
     root = Path(root)
     manifest = _manifest(root)
     fingerprint = hashlib.sha256((root / MANIFEST).read_bytes()).hexdigest()
-    if (manifest.get("identity") or {}).get("exporter", {}).get("name") == "mcap":
+    identity = manifest.get("identity")
+    exporter = identity.get("exporter") if isinstance(identity, dict) else None
+    if isinstance(exporter, dict) and exporter.get("name") == "mcap":
         raise ConfigError("this dataset holds ROS 2 bags (--format mcap); evaluate reads "
                           "datasets of frame files (e.g. --format npz)", source=root)
     if split is not None:
@@ -304,8 +306,14 @@ def open_dataset(root: str | Path, split: str | None = None, *, verify: bool = T
             raise ConfigError("this dataset has a single sequence and no splits; drop "
                               "--split", source=root, field="--split")
     sequences = []
-    for i, seq in enumerate(manifest.get("sequences") or []):
+    listed = manifest.get("sequences") or []
+    if not isinstance(listed, list):
+        raise ConfigError("is not a list of sequences", source=root / MANIFEST,
+                          field="sequences")
+    for i, seq in enumerate(listed):
         try:
+            if not isinstance(seq, dict):
+                raise TypeError("not a mapping")
             if split is not None and seq.get("split") != split:
                 continue
             manifest_path = root / MANIFEST
