@@ -588,3 +588,27 @@ def test_dataset_reruns_work_under_a_4_gib_address_space(tmp_path):
     assert corrupt.returncode == 2, corrupt.stderr
     assert "manifest.json" in corrupt.stderr and "MemoryError" not in corrupt.stderr
     assert len(corrupt.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.skipif(sys.platform != "linux", reason="RLIMIT_AS and sparse files")
+def test_a_sparse_stl_of_40_million_triangles_is_refused_by_memory(tmp_path):
+    """The file really is 2 GB long (sparse), so its header count matches its length: it is
+    refused because loading it needs ~520 bytes a triangle, more than a 4 GiB address space
+    leaves, before trimesh allocates anything."""
+    import subprocess
+
+    path = tmp_path / "sparse.stl"
+    with open(path, "wb") as stream:
+        stream.write(b"\0" * 80 + (40_000_000).to_bytes(4, "little"))
+        stream.truncate(84 + 50 * 40_000_000)
+    code = ("import resource\n"
+            "resource.setrlimit(resource.RLIMIT_AS, (4 * 2**30, 4 * 2**30))\n"
+            "from lidarsim_core.base.errors import MeshError\n"
+            "from lidarsim_core.scene.mesh import load_mesh_file\n"
+            f"try:\n    load_mesh_file({str(path)!r})\n"
+            "except MeshError as exc:\n    print(exc)\n")
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         env=env, timeout=120)
+    assert "40,000,000 triangles needs about" in res.stdout, res.stdout + res.stderr
+    assert res.stdout.startswith(str(path))

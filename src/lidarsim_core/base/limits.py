@@ -196,3 +196,53 @@ def check_pattern_window(rate_hz: float, start_s: float, duration_s: float, *,
         raise ConfigError(f"the window ends at t = {start_s + duration_s:g} s, where ray "
                           f"indices ({rate_hz:g} Hz × time) exceed 2^53", source=source,
                           field=start_field)
+
+
+def memory_ceiling_bytes() -> float:
+    """The most memory this process can get: the smaller of the headroom its address-space
+    limit leaves (``ulimit -v``: ``RLIMIT_AS`` minus what is mapped already) and the machine's
+    physical memory; ``inf`` where neither is known."""
+    ceiling = math.inf
+    try:
+        import resource
+
+        soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+        if soft != resource.RLIM_INFINITY:
+            ceiling = float(soft) - _mapped_bytes()
+    except (ImportError, OSError, ValueError):
+        pass
+    try:
+        ceiling = min(ceiling, float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")))
+    except (AttributeError, OSError, ValueError):
+        pass
+    return ceiling
+
+
+def _mapped_bytes() -> float:
+    try:
+        with open("/proc/self/status", "rb") as stream:
+            for line in stream:
+                if line.startswith(b"VmSize:"):
+                    return float(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return 0.0
+
+
+def check_memory(needed: float, *, what: str, source: str | Path | None = None,
+                 field: str | None = None) -> None:
+    """Refuse work that needs more memory than :func:`memory_ceiling_bytes` (``what`` says
+    what needs it), before anything is allocated.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``source`` and ``field``, the bytes needed and the bytes available.
+    """
+    ceiling = memory_ceiling_bytes()
+    if needed <= ceiling:
+        return
+    raise ConfigError(f"{what} needs about {needed / 2 ** 30:,.1f} GiB of memory, more than "
+                      f"the {max(ceiling, 0) / 2 ** 30:,.1f} GiB this process can get "
+                      "(its address-space limit, or the machine's memory)", source=source,
+                      field=field)

@@ -306,7 +306,20 @@ def _truncation(path: Path) -> str | None:
     if count > bound:  # refused before trimesh allocates them
         return (f"binary STL announces {count:,} triangles, over the limit of {bound:,.0f} "
                 f"(set {LIMITS['mesh_triangles'].env} to raise it)")
+    from ..base.errors import ConfigError
+    from ..base.limits import check_memory
+
+    try:  # a file that holds them (even a sparse one) may still not fit in memory
+        check_memory(count * LOAD_BYTES_PER_TRIANGLE,
+                     what=f"loading its {count:,} triangles")
+    except ConfigError as exc:
+        return f"binary STL: {exc.message}"
     return None
+
+
+#: Peak memory of loading one triangle of a binary STL (trimesh's arrays, the float64 copies,
+#: the merged mesh), measured at ~520 bytes on a 10⁶-triangle file.
+LOAD_BYTES_PER_TRIANGLE = 520
 
 
 def _colour_material(geom: Any) -> dict[str, Any] | None:
