@@ -61,7 +61,10 @@ def las_cases(valid: bytes) -> dict[str, tuple[bytes, str]]:
     huge = bytearray(valid)
     struct.pack_into("<I", huge, 107, 0)
     struct.pack_into("<Q", huge, 247, 2 ** 40)
+    vlrs = bytearray(valid)
+    vlrs[103] = 1  # the top byte of the VLR count: 16.7 million VLRs laspy would loop over
     out = {"huge count": (bytes(huge), "1,099,511,627,776 points"),
+           "VLR count flipped": (bytes(vlrs), "16,777,2"),
            "truncated": (valid[:len(valid) // 2], "")}
     start = valid.find(b"lidarsim\0")
     if start >= 0:  # the metadata VLR: user id at +2 of its header; its data after 54 bytes

@@ -87,7 +87,7 @@ def _case_ids() -> list[tuple[str, str]]:
                      "comment not JSON"],
              "pcd": ["huge count", "negative count", "missing FIELDS", "unknown TYPE",
                      "truncated record"],
-             "las": ["huge count", "truncated", "metadata VLR not UTF-8",
+             "las": ["huge count", "VLR count flipped", "truncated", "metadata VLR not UTF-8",
                      "metadata VLR not JSON"],
              "npz": ["zip bomb", "truncated zip", "columns of different lengths",
                      "text column", "2-D column", "pickle", "NPY shape 2**36",

@@ -284,6 +284,7 @@ def _check_las_header(laspy: Any, path: Path, size: int) -> None:
     from ..base.limits import LIMITS, limit
     from .columns import check_record_count
 
+    _check_las_layout(path, size)  # counts laspy would loop over, before it does
     try:
         with laspy.open(str(path)) as reader:
             header = reader.header
@@ -304,6 +305,39 @@ def _check_las_header(laspy: Any, path: Path, size: int) -> None:
         return
     check_record_count(count, record, max(size - offset, 0), source=path, what="points",
                        field="point count")
+
+
+#: Sizes of a VLR header and an EVLR header (LAS 1.4 specification).
+_VLR_HEADER = 54
+_EVLR_HEADER = 60
+
+
+def _check_las_layout(path: Path, size: int) -> None:
+    """The LAS header's own counts against the file: the VLRs must fit between the header
+    and the point data, the EVLRs after their start offset (laspy would otherwise create
+    millions of empty records for a count with one flipped byte, for minutes)."""
+    import struct
+
+    with open(path, "rb") as stream:
+        head = stream.read(375)
+    if len(head) < 227 or head[:4] != b"LASF":
+        raise ConfigError("not a LAS/LAZ file (no LASF signature or a header shorter than "
+                          "227 bytes)", source=path)
+    header_size, offset, vlrs = struct.unpack_from("<HII", head, 94)
+    if not header_size <= offset <= size:
+        raise ConfigError(f"offset to point data {offset:,} is outside the file ({size:,} "
+                          f"bytes, header {header_size} bytes)", source=path,
+                          field="offset to point data")
+    if vlrs * _VLR_HEADER > offset - header_size:
+        raise ConfigError(f"declares {vlrs:,} VLRs ({vlrs * _VLR_HEADER:,} bytes of their "
+                          f"headers at least) in the {offset - header_size:,} bytes between "
+                          "the header and the points", source=path, field="number of VLRs")
+    if head[24:26] >= b"\x01\x04" and len(head) >= 255:
+        start, evlrs = struct.unpack_from("<QI", head, 243)
+        if evlrs and (start > size or evlrs * _EVLR_HEADER > size - start):
+            raise ConfigError(f"declares {evlrs:,} extended VLRs from byte {start:,}, which "
+                              f"the file ({size:,} bytes) cannot hold", source=path,
+                              field="number of EVLRs")
 
 
 def read_las(path: str | Path) -> "PointCloud":
