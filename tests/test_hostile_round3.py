@@ -612,3 +612,18 @@ def test_a_sparse_stl_of_40_million_triangles_is_refused_by_memory(tmp_path):
                          env=env, timeout=120)
     assert "40,000,000 triangles needs about" in res.stdout, res.stdout + res.stderr
     assert res.stdout.startswith(str(path))
+
+
+def test_a_bag_on_a_full_disk_names_the_bag_and_leaves_nothing(tmp_path, capsys, monkeypatch):
+    pytest.importorskip("rosbags")
+    import errno
+
+    from rosbags.rosbag2 import Writer
+
+    def full(self, *args, **kwargs):
+        raise OSError(errno.ENOSPC, "No space left on device")  # no file name, as in a writer
+
+    monkeypatch.setattr(Writer, "write", full)
+    refused(["simulate", _bag_scene(tmp_path), "--out", tmp_path / "b.mcap"], capsys,
+            "b.mcap", "no space left")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bag.yaml"]

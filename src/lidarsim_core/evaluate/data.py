@@ -19,7 +19,8 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
-from ..base.errors import ConfigError
+from ..base.config_io import read_text_file
+from ..base.errors import ConfigError, UserInputError
 from .base import TargetModelData
 
 
@@ -368,7 +369,7 @@ def safe_name(name: str) -> str:
 
 def load_json(path: Path) -> Any:
     """Parse a JSON file, ``None`` when missing or unreadable."""
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+    try:  # the bounded reader: a FIFO or a huge file in its place is not read
+        return json.loads(read_text_file(path, "evaluation record"))
+    except (UserInputError, json.JSONDecodeError, RecursionError):
         return None
