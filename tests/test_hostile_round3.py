@@ -627,3 +627,17 @@ def test_a_bag_on_a_full_disk_names_the_bag_and_leaves_nothing(tmp_path, capsys,
     refused(["simulate", _bag_scene(tmp_path), "--out", tmp_path / "b.mcap"], capsys,
             "b.mcap", "no space left")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bag.yaml"]
+
+
+def test_an_npy_pattern_table_declaring_2_36_rows_is_refused_by_its_length(tmp_path):
+    import io
+
+    from lidarsim_core.base.errors import PatternFileError
+    from lidarsim_core.patterns.table_io import read_pattern_table
+
+    buffer = io.BytesIO()
+    np.lib.format.write_array(buffer, np.zeros((5, 3)))
+    path = tmp_path / "table.npy"
+    path.write_bytes(buffer.getvalue().replace(b"(5, 3)", b"(68719476736, 3)"))
+    with pytest.raises(PatternFileError, match="1,649,267,441,664 bytes"):
+        read_pattern_table(path)
