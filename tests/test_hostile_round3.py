@@ -641,3 +641,17 @@ def test_an_npy_pattern_table_declaring_2_36_rows_is_refused_by_its_length(tmp_p
     path.write_bytes(buffer.getvalue().replace(b"(5, 3)", b"(68719476736, 3)"))
     with pytest.raises(PatternFileError, match="1,649,267,441,664 bytes"):
         read_pattern_table(path)
+
+
+@pytest.mark.parametrize("values, dtype, fragment", [
+    ([1.0, float("nan")], "i8", "not finite"), ([0.5], "i4", "fraction"),
+    ([300], "u1", "do not fit"), ([2.0 ** 70], "i8", "do not fit")])
+def test_integer_columns_never_wrap_or_take_nan(values, dtype, fragment):
+    """A float column read into an integer record column (a PCD field whose TYPE says F,
+    PLY's double ray_index) is refused when a value does not fit, never cast to garbage
+    with a RuntimeWarning (found by the reader fuzzer)."""
+    from lidarsim_core.io.columns import cast_column
+
+    with pytest.raises(ConfigError, match=fragment):
+        cast_column(np.array(values), dtype, source="c.pcd", field="ring")
+    assert cast_column(np.array([1.0, 2.0]), "i2", source="c", field="f").dtype == np.int16

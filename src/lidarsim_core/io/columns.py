@@ -51,8 +51,36 @@ def cloud_from_columns(columns: dict[str, np.ndarray], metadata: dict[str, Any] 
         dtype = np.dtype(POINT_FIELDS.get(name, values.dtype))
         if dtype.kind in "iu" and values.dtype.kind == "f":
             values = np.round(values)  # integer columns stored as double (PLY's ray_index)
-        out[name] = np.ascontiguousarray(values, dtype=dtype)
+        out[name] = np.ascontiguousarray(cast_column(values, dtype, source=source, field=name))
     return PointCloud(out, frame)
+
+
+def cast_column(values: np.ndarray, dtype: np.dtype | str, *, source: str | Path,
+                field: str) -> np.ndarray:
+    """``values`` as ``dtype``, refused when a value does not fit: NaN, infinities or
+    fractions into an integer column, integers beyond its range (NumPy would wrap them or
+    cast NaN to an arbitrary integer, silently).
+
+    Raises
+    ------
+    ConfigError
+        Naming ``source`` and the column.
+    """
+    dtype = np.dtype(dtype)
+    if dtype.kind in "iu" and values.dtype.kind in "fiub" and len(values):
+        info = np.iinfo(dtype)
+        if values.dtype.kind == "f":
+            if not np.all(np.isfinite(values)):
+                raise ConfigError("integer column holds a value that is not finite",
+                                  source=source, field=field)
+            if not np.all(values == np.round(values)):
+                raise ConfigError("integer column holds a fraction", source=source,
+                                  field=field)
+        low, high = values.min(), values.max()
+        if low < info.min or high > info.max:
+            raise ConfigError(f"values {low}..{high} do not fit the column's type {dtype}",
+                              source=source, field=field)
+    return values.astype(dtype, copy=False)
 
 
 #: Exceptions a parser raises on malformed bytes (NumPy, zipfile, json, struct, laspy...);

@@ -51,6 +51,7 @@ from ..base.errors import ConfigError, OutputError
 from ..base.optional import require
 from ..hookspecs import hookimpl
 from .base import Exporter
+from .columns import cast_column, check_input, check_record_count
 
 if TYPE_CHECKING:
     from ..records.pointcloud import PointCloud
@@ -229,7 +230,6 @@ def read_las_columns(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str,
     ``reflectivity`` extra bytes when there are some, the rest from the extra bytes.
     """
     from ..records.pointcloud import POINT_FIELDS
-    from .columns import check_input
 
     path = Path(path)
     size = check_input(path, "LAS/LAZ file")
@@ -272,7 +272,8 @@ def read_las_columns(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str,
     if "part" not in columns:
         columns["part"] = (np.asarray(data.classification, dtype=np.int64)
                            - CLASS_OFFSET).astype(np.int16)
-    columns = {k: v.astype(POINT_FIELDS.get(k, v.dtype), copy=False) for k, v in columns.items()}
+    columns = {k: cast_column(v, POINT_FIELDS.get(k, v.dtype), source=path, field=k)
+               for k, v in columns.items()}
     return columns, metadata
 
 
@@ -282,7 +283,6 @@ def _check_las_header(laspy: Any, path: Path, size: int) -> None:
     offset to point data; a LAZ is held to the ``rays_per_frame`` limit (a point per ray) and
     to the ``data_bytes`` limit once decompressed."""
     from ..base.limits import LIMITS, limit
-    from .columns import check_record_count
 
     _check_las_layout(path, size)  # counts laspy would loop over, before it does
     try:

@@ -35,7 +35,7 @@ from ..base.components import ComponentOptions
 from ..base.errors import ConfigError, OutputError
 from ..hookspecs import hookimpl
 from .base import Exporter
-from .columns import check_input, check_record_count, reader_errors
+from .columns import cast_column, check_input, check_record_count, reader_errors
 from .headermeta import metadata_from_lines, metadata_lines
 
 if TYPE_CHECKING:
@@ -192,7 +192,9 @@ def read_pcd_columns(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str,
         columns = {}
         for name in dtype.names or ():
             column = back.get(name, name)
-            columns[column] = data[name].astype(POINT_FIELDS.get(column, data[name].dtype))
+            columns[column] = cast_column(data[name], POINT_FIELDS.get(column,
+                                                                        data[name].dtype),
+                                          source=path, field=name)
         try:
             metadata = metadata_from_lines(comments, _METADATA_PREFIX)
         except ValueError as exc:
