@@ -80,7 +80,13 @@ def cast_column(values: np.ndarray, dtype: np.dtype | str, *, source: str | Path
         if low < info.min or high > info.max:
             raise ConfigError(f"values {low}..{high} do not fit the column's type {dtype}",
                               source=source, field=field)
-    return values.astype(dtype, copy=False)
+    try:
+        with np.errstate(all="raise"):  # any other lossy cast (NaN into bool, 1e300 into
+            return values.astype(dtype, copy=False)  # float32) is refused, not warned about
+    except FloatingPointError:
+        raise ConfigError(f"values of type {values.dtype} do not fit the column's type "
+                          f"{dtype} (NaN, infinite or too large)", source=source,
+                          field=field) from None
 
 
 #: Exceptions a parser raises on malformed bytes (NumPy, zipfile, json, struct, laspy...);
