@@ -332,7 +332,7 @@ def open_dataset(root: str | Path, split: str | None = None, *, verify: bool = T
                                       manifest=manifest_path, field=f"{at}.scenario")
             sequences.append(SequenceData(str(seq["name"]), seq_root, seq.get("split"), frames,
                                           poses, scenario))
-        except (KeyError, TypeError, ValueError, AttributeError) as exc:
+        except (KeyError, TypeError, ValueError, AttributeError, OverflowError) as exc:
             raise ConfigError(f"malformed sequence entry ({type(exc).__name__}: {exc})",
                               source=root / MANIFEST, field=f"sequences.{i}") from None
     if not sequences:
