@@ -21,6 +21,7 @@ from pathlib import Path
 import pytest
 from fuzz.cases import dataset_case, environment_case, option_case, scenario_case
 from fuzz.harness import Worker, check_contract, snapshot
+from fuzz.readers import reader_case
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -31,7 +32,8 @@ LONG = "LIDARSIM_FUZZ_EXAMPLES" in os.environ
 EXAMPLES = int(os.environ.get("LIDARSIM_FUZZ_EXAMPLES", "0")) or None
 
 #: Share of the CI budget (100 examples) each strategy gets.
-SHARE = {"scenarios": 2.0, "options": 1.0, "environment": 0.4, "datasets": 0.6}
+SHARE = {"scenarios": 2.0, "options": 1.0, "environment": 0.4, "datasets": 0.6,
+         "readers": 1.5}
 
 
 def _settings(name: str) -> settings:
@@ -74,5 +76,61 @@ def test_fuzz_contract(name, worker, base):
     @given(data=st.data())
     def run(data):
         _run(worker, data.draw(strategy(base)))
+
+    run()
+
+
+@pytest.fixture(scope="module")
+def reader_seeds(tmp_path_factory) -> dict:
+    """Valid files the reader cases mutate: a cloud in every format lidarsim writes (with its
+    sidecar), an OBJ with its MTL, a GLB with two parts, and a complete two-frame dataset."""
+    import yaml
+
+    from fuzz.cases import BASE_SCENARIO
+    from lidarsim_core import cli
+    from lidarsim_core.dataset import generate_dataset
+    from lidarsim_core.io.meshfile import export_mesh
+    from lidarsim_core.models.builtin import BoxModel
+
+    root = tmp_path_factory.mktemp("reader-seeds")
+    scene = root / "s.yaml"
+    scene.write_text(yaml.safe_dump(BASE_SCENARIO))
+    seeds: dict = {}
+    formats = ["ply", "pcd", "npz"]
+    try:
+        import laspy  # noqa: F401
+
+        formats.append("las")
+    except ImportError:
+        pass
+    for fmt in formats:
+        with pytest.raises(SystemExit) as stop:
+            cli.main(["simulate", str(scene), "--out", str(root / f"c.{fmt}")])
+        assert stop.value.code == 0
+        seeds[fmt] = (root / f"c.{fmt}").read_bytes()
+    if "las" not in seeds:
+        seeds["las"] = seeds["ply"]
+    seeds["sidecar"] = (root / "c.ply.json").read_bytes()
+    mesh = BoxModel.from_config({"extents_m": [1, 2, 3]}).mesh()
+    export_mesh(mesh, root / "m.obj")
+    seeds["obj"], seeds["mtl"] = (root / "m.obj").read_bytes(), (root / "m.mtl").read_bytes()
+    export_mesh(mesh, root / "m.glb")
+    seeds["glb"] = (root / "m.glb").read_bytes()
+    sequence = dict(BASE_SCENARIO, scan={"duration_s": 0.01, "frame_period_s": 0.1,
+                                         "frames": 2})
+    (root / "seq.yaml").write_text(yaml.safe_dump(sequence))
+    generate_dataset(root / "seq.yaml", root / "ds", quiet=True)
+    seeds["dataset"] = root / "ds"
+    return seeds
+
+
+def test_fuzz_readers(worker, base, reader_seeds):
+    """Mutated PLY/PCD/LAS/NPZ/OBJ/GLB/manifest/poses files through the readers
+    (``tests/fuzz/readers.py``)."""
+
+    @_settings("readers")
+    @given(data=st.data())
+    def run(data):
+        _run(worker, data.draw(reader_case(base, reader_seeds)))
 
     run()

@@ -63,11 +63,15 @@ class Case:
     outputs: list[str] = field(default_factory=list)
     #: Extra strings an error line may use to name what is wrong (e.g. the sensor argument).
     names: list[str] = field(default_factory=list)
+    #: A Python reader to call instead of the command line (``read``, ``mesh``, ``dataset``;
+    #: ``argv[0]`` is its file or directory).
+    api: str | None = None
 
     def describe(self) -> str:
         env = " ".join(f"{k}={v}" for k, v in self.env.items() if BUDGET_ENV.get(k) != v)
         files = {p.name: _preview(p) for p in sorted(self.directory.iterdir())}
-        return f"{env} lidarsim {' '.join(self.argv)}\nfiles: {json.dumps(files)[:3000]}"
+        run = f"api {self.api}(" if self.api else "lidarsim "
+        return f"{env} {run}{' '.join(self.argv)}\nfiles: {json.dumps(files)[:3000]}"
 
 
 def _preview(path: Path) -> str:
@@ -121,7 +125,7 @@ class Worker:
         assert self.proc is not None and self.proc.stdin is not None
         self.cases += 1
         self.proc.stdin.write(json.dumps({"dir": str(case.directory), "argv": case.argv,
-                                          "env": case.env}) + "\n")
+                                          "env": case.env, "api": case.api}) + "\n")
         self.proc.stdin.flush()
         result = self._read(CASE_SECONDS)
         if result is None or "died" in result:

@@ -4,7 +4,8 @@ Started by :class:`fuzz.harness.Worker` as ``python worker.py MEMORY_BYTES``. It
 address space with ``resource.setrlimit`` (a case that tries to allocate too much fails with a
 MemoryError inside this process, never on the machine), then reads one JSON case per line on
 stdin (``{"dir", "argv", "env"}``), runs ``lidarsim ARGV`` in process (the real entry point,
-with its usage-error handling) in ``dir`` with ``env`` added, and writes one JSON result per
+with its usage-error handling) in ``dir`` with ``env`` added (or, for a reader case with
+``"api"``, the Python reader it names: ``read``, ``mesh`` or ``dataset``), and writes one JSON result per
 line to the protocol stream: the exit code, stdout, stderr, wall time and peak memory. An
 exception that escapes the command line is reported with its traceback. The parent enforces
 the time bound (it kills the worker when a case hangs).
@@ -42,6 +43,45 @@ def _disable(spec: str) -> None:
                     setattr(other, name, lambda *args, **kwargs: None)
 
 
+def _api(name: str, argv: list[str]) -> None:
+    """The Python API readers a reader case calls (``{"api": NAME}``): a user error prints one
+    ``error:`` line and exits 2, as the command line does."""
+    from lidarsim_core.base.errors import UserInputError
+    from lidarsim_core.base.terminal import terminal_safe
+
+    try:
+        if name == "read":
+            import lidarsim_core as ls
+
+            cloud = ls.read(argv[0])
+            lengths = {len(values) for values in cloud.columns.values()}
+            assert len(lengths) == 1, f"columns of different lengths {lengths}"
+            assert lengths == {len(cloud)}, "the cloud's length is not its columns'"
+        elif name == "mesh":
+            import numpy as np
+
+            from lidarsim_core.scene.mesh import load_mesh_file
+
+            mesh = load_mesh_file(argv[0])
+            assert len(mesh.faces) and np.all(np.isfinite(mesh.vertices))
+            assert mesh.faces.min() >= 0 and mesh.faces.max() < len(mesh.vertices)
+        elif name == "dataset":
+            from lidarsim_core.evaluate.data import open_dataset, read_frame_columns
+
+            sequences, _ = open_dataset(argv[0])
+            for seq in sequences:
+                index = seq.target_index(None)
+                for entry in seq.frames:
+                    read_frame_columns(entry.path)
+                    seq.truth(entry.frame, index, 0.0)
+        else:
+            raise ValueError(f"unknown api case {name}")
+    except UserInputError as exc:
+        sys.stderr.write("error: " + terminal_safe(" ".join(str(exc).split())) + "\n")
+        raise SystemExit(2) from None
+    raise SystemExit(0)
+
+
 def main() -> None:
     memory = int(sys.argv[1])
     resource.setrlimit(resource.RLIMIT_AS, (memory, memory))
@@ -70,7 +110,10 @@ def main() -> None:
                 warnings.simplefilter("ignore", DeprecationWarning)
                 warnings.simplefilter("ignore", PendingDeprecationWarning)
                 try:
-                    cli.main(case["argv"])
+                    if case.get("api"):
+                        _api(case["api"], case["argv"])
+                    else:
+                        cli.main(case["argv"])
                 except SystemExit as stop:
                     code = stop.code if isinstance(stop.code, int) else 1
         except BaseException:  # noqa: BLE001 - reported to the parent as a contract breach

@@ -20,6 +20,10 @@ from .oserrors import describe_os_error
 
 CONFIG_SUFFIXES = (".yaml", ".yml", ".toml", ".json")
 
+#: Largest number of bytes one read may ask for, whatever a limit is raised to (a limit of
+#: ``1e300`` must not become a request Python cannot even express).
+MAX_READ_BYTES = 2 ** 62
+
 
 def check_input_file(path: str | Path, what: str = "file", *, limit_name: str = "config_bytes",
                      error: type[UserInputError] = ConfigError,
@@ -63,6 +67,9 @@ def check_input_file(path: str | Path, what: str = "file", *, limit_name: str = 
     if kind is not None:
         raise error(f"{prefix}is {kind}, not a {what}" if kind[0] == "a" else
                     f"{prefix}{kind}", **where)
+    from .outputs import note_input
+
+    note_input(path, info)  # an output may never replace it (lidarsim_core.base.outputs)
     bound = limit(limit_name)
     if info.st_size > bound:
         raise error(f"{prefix}{what} is {info.st_size:,} bytes, over the limit of "
@@ -77,19 +84,21 @@ def read_bytes_file(path: str | Path, what: str = "file", *, limit_name: str = "
     limit (a file that grows while it is read is refused too)."""
     from .limits import limit
 
-    check_input_file(path, what, limit_name=limit_name, error=error, source=source,
-                     field=field)
-    bound = int(limit(limit_name))
+    size = check_input_file(path, what, limit_name=limit_name, error=error, source=source,
+                            field=field)
+    # never ask for the bound itself (a 4 GiB buffer for a 1 KB manifest): the file's own size
+    # plus one byte, which tells a file that grew while it was read
+    bound = int(min(limit(limit_name), MAX_READ_BYTES))
     where = {"source": source, "field": field} if source is not None else {"source": path}
     prefix = f"{path}: " if field is not None else ""
     try:
         with open(path, "rb") as stream:
-            data = stream.read(bound + 1)
+            data = stream.read(min(size, bound) + 1)
     except OSError as exc:
         raise error(f"{prefix}cannot read {what}: {describe_os_error(exc)}", **where) from None
-    if len(data) > bound:
-        raise error(f"{prefix}{what} grew beyond the limit of {bound:,} bytes while it was "
-                    "read", **where)
+    if len(data) > size:
+        raise error(f"{prefix}{what} grew beyond its {size:,} bytes while it was read",
+                    **where)
     return data
 
 

@@ -73,6 +73,10 @@ LIMITS: dict[str, Limit] = {limit.name: limit for limit in (
     Limit("config_bytes", 64 * 2 ** 20, "LIDARSIM_MAX_CONFIG_BYTES", "bytes",
           "size of a text input: scenario, datasheet, dataset file, keyframes, CSV pattern "
           "table, sidecar or run-directory JSON"),
+    Limit("bag_frame_points", 4e6, "LIDARSIM_MAX_BAG_FRAME_POINTS", "rays",
+          "rays of one frame written into a ROS 2 bag: a PointCloud2 message holds the "
+          "whole frame (about 100 bytes a point, several copies while serialised), so a "
+          "bag cannot stream a frame the way point-cloud files do"),
     Limit("data_bytes", 4 * 2 ** 30, "LIDARSIM_MAX_DATA_BYTES", "bytes",
           "size of a binary input: mesh, NPY pattern table, NPZ cloud"),
 )}
@@ -81,6 +85,15 @@ LIMITS: dict[str, Limit] = {limit.name: limit for limit in (
 #: Ray indices and timestamps are exact in float64 below 2**53; a scan reaching further in
 #: ray count (point rate × time since the epoch) is refused (a hard limit, not a budget).
 MAX_RAY_INDEX = 2 ** 53
+
+
+#: Largest value any limit may be raised to (integers are exact in float64 below it): a limit
+#: of ``1e300`` is a typo, not a budget.
+MAX_LIMIT = float(2 ** 53)
+
+#: Lower ceilings where the machine itself sets one: threads beyond a few thousand do not
+#: start (or hang inside Embree's task scheduler) instead of failing cleanly.
+HARD_CEILINGS: dict[str, float] = {"threads": 4096.0}
 
 
 #: Largest seed: noise keys are unsigned 64-bit integers, and a larger seed would silently
@@ -107,6 +120,10 @@ def limit(name: str) -> float:
     if not (math.isfinite(value) and value > 0):
         raise ConfigError(f"{spec.env}={raw!r} must be a positive number", source=ENVIRONMENT,
                           field=spec.env)
+    ceiling = HARD_CEILINGS.get(name, MAX_LIMIT)
+    if value > ceiling:
+        raise ConfigError(f"{spec.env}={raw!r} is above the largest value lidarsim accepts "
+                          f"for it, {size_text(ceiling)}", source=ENVIRONMENT, field=spec.env)
     return value
 
 
@@ -153,7 +170,7 @@ def threads_from_env(default: int) -> int:
     raw = os.environ.get("LIDARSIM_THREADS", "").strip()
     if not raw:
         return default
-    if not raw.isdigit() or int(raw) < 1:
+    if not (raw.isascii() and raw.isdigit()) or int(raw) < 1:
         raise ConfigError(f"LIDARSIM_THREADS={raw!r} must be a positive integer",
                           source=ENVIRONMENT, field="LIDARSIM_THREADS")
     value = int(raw)
@@ -179,3 +196,53 @@ def check_pattern_window(rate_hz: float, start_s: float, duration_s: float, *,
         raise ConfigError(f"the window ends at t = {start_s + duration_s:g} s, where ray "
                           f"indices ({rate_hz:g} Hz × time) exceed 2^53", source=source,
                           field=start_field)
+
+
+def memory_ceiling_bytes() -> float:
+    """The most memory this process can get: the smaller of the headroom its address-space
+    limit leaves (``ulimit -v``: ``RLIMIT_AS`` minus what is mapped already) and the machine's
+    physical memory; ``inf`` where neither is known."""
+    ceiling = math.inf
+    try:
+        import resource
+
+        soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+        if soft != resource.RLIM_INFINITY:
+            ceiling = float(soft) - _mapped_bytes()
+    except (ImportError, OSError, ValueError):
+        pass
+    try:
+        ceiling = min(ceiling, float(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")))
+    except (AttributeError, OSError, ValueError):
+        pass
+    return ceiling
+
+
+def _mapped_bytes() -> float:
+    try:
+        with open("/proc/self/status", "rb") as stream:
+            for line in stream:
+                if line.startswith(b"VmSize:"):
+                    return float(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return 0.0
+
+
+def check_memory(needed: float, *, what: str, source: str | Path | None = None,
+                 field: str | None = None) -> None:
+    """Refuse work that needs more memory than :func:`memory_ceiling_bytes` (``what`` says
+    what needs it), before anything is allocated.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``source`` and ``field``, the bytes needed and the bytes available.
+    """
+    ceiling = memory_ceiling_bytes()
+    if needed <= ceiling:
+        return
+    raise ConfigError(f"{what} needs about {needed / 2 ** 30:,.1f} GiB of memory, more than "
+                      f"the {max(ceiling, 0) / 2 ** 30:,.1f} GiB this process can get "
+                      "(its address-space limit, or the machine's memory)", source=source,
+                      field=field)

@@ -20,8 +20,10 @@
 from __future__ import annotations
 
 import os
+import stat
+from contextlib import contextmanager
 from pathlib import Path
-from typing import Iterable
+from typing import Iterable, Iterator
 
 from .errors import OutputError
 
@@ -85,6 +87,8 @@ def check_file(path: str | Path, *, overwrite: bool, hint: str = CLI_HINT,
         raise OutputError(f"output path is a symbolic link ({hint} it)", source=path)
     if os.path.lexists(path) and not overwrite:
         raise OutputError(f"{what} exists ({hint} it)", source=path)
+    check_replaceable(path)  # a device or FIFO is never replaced, whatever the flag
+    check_not_input(path)  # nor a file the command reads
     check_directory(path.parent, source=path)
 
 
@@ -135,3 +139,93 @@ def make_parent(path: str | Path) -> None:
         except OSError as exc:
             raise OutputError(f"cannot create the output directory {parent}: "
                               f"{exc.strerror or exc}", source=path) from None
+
+
+# ---- outputs never replace inputs or non-files (issue 27) ----------------------------------
+#: Files read by the running command, by identity ``(device, inode, ctime)`` → the path as
+#: read; ``None`` while no command tracks its inputs (the Python API may rewrite a file it
+#: read: ``ls.read(p).save(p, overwrite=True)`` is the caller's choice).
+_INPUTS: dict[tuple[int, int, int], str] | None = None
+
+
+@contextmanager
+def tracking_inputs() -> Iterator[None]:
+    """Record, while the body runs, every file the bounded reader opens as an input
+    (:func:`note_input`), so that :func:`check_file` refuses to replace one of them, even
+    with ``--overwrite``. The command line runs every command inside it."""
+    global _INPUTS
+    previous, _INPUTS = _INPUTS, {}
+    try:
+        yield
+    finally:
+        _INPUTS = previous
+
+
+def note_input(path: str | Path, info: os.stat_result | None = None) -> None:
+    """Remember ``path`` as an input of the running command (nothing outside
+    :func:`tracking_inputs`)."""
+    if _INPUTS is None:
+        return
+    try:
+        info = info or os.stat(path)
+    except OSError:
+        return
+    _INPUTS[(info.st_dev, info.st_ino, info.st_ctime_ns)] = str(path)
+
+
+def check_not_input(path: str | Path) -> None:
+    """Refuse an output ``path`` that is (or links to) a file the running command reads.
+
+    Raises
+    ------
+    OutputError
+        Naming the output and the input it would replace; ``--overwrite`` does not lift it.
+    """
+    if not _INPUTS:
+        return
+    try:
+        info = os.stat(path)
+    except (OSError, ValueError):
+        return
+    key = (info.st_dev, info.st_ino, info.st_ctime_ns)
+    if key in _INPUTS:
+        raise OutputError(f"output is an input of this command ({_INPUTS[key]}): lidarsim "
+                          "never replaces a file it reads, even with --overwrite",
+                          source=path)
+
+
+def check_replaceable(path: str | Path) -> None:
+    """Refuse to replace anything but a regular file (or a symbolic link, which is replaced
+    itself, never followed): ``--overwrite`` onto a device, FIFO or socket would put a
+    regular file where the node was.
+
+    Raises
+    ------
+    OutputError
+        Naming the path and what it is.
+    """
+    try:
+        info = os.lstat(path)
+    except (OSError, ValueError):
+        return
+    mode = info.st_mode
+    if stat.S_ISREG(mode) or stat.S_ISLNK(mode):
+        return
+    kind = ("a device" if stat.S_ISCHR(mode) or stat.S_ISBLK(mode) else
+            "a named pipe (FIFO)" if stat.S_ISFIFO(mode) else
+            "a socket" if stat.S_ISSOCK(mode) else "not a regular file")
+    raise OutputError(f"output path is {kind}: --overwrite replaces regular files only",
+                      source=path)
+
+
+def check_group(paths: Iterable[str | Path], *, overwrite: bool, hint: str = CLI_HINT) -> None:
+    """Check every file of a multi-file output (OBJ + MTL, cloud + range image, cloud +
+    sidecar) before any of them is written: all pass, or nothing is written.
+
+    Raises
+    ------
+    OutputError
+        For the first path that may not be written (see :func:`check_file`).
+    """
+    for path in paths:
+        check_file(path, overwrite=overwrite, hint=hint)

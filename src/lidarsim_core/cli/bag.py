@@ -14,10 +14,11 @@ if TYPE_CHECKING:
 
 
 def simulate_to_bag(scenario: "Scenario", frames: Sequence[int], out: Path, *,
-                    overwrite: bool, livox: bool, range_image: bool = False) -> None:
+                    overwrite: bool, livox: bool, range_image: bool = False,
+                    source: Path | None = None) -> None:
     """Simulate ``frames`` into the bag ``out`` with a progress bar, then say what was
     written."""
-    from rich.markup import escape
+    from .output import markup_safe as escape
 
     from ..base.errors import OutputError
 
@@ -32,6 +33,11 @@ def simulate_to_bag(scenario: "Scenario", frames: Sequence[int], out: Path, *,
     require_rosbags()  # missing extra 'ros': say so before simulating
     check_bag_output(out, overwrite=overwrite)
     sim = Simulation(scenario)
+    from ..base.outputs import check_not_input
+    from ..io.rosbag import check_bag_frames
+
+    check_not_input(out)  # the scenario, its meshes and keyframes are never replaced
+    check_bag_frames([sim.frame_info(f) for f in frames], source=source)  # times and sizes, before any work
     with FrameProgress(len(frames), display=FrameBar()) as progress:
         write_bag((sim.run_frame(f) for f in frames), out,
                   target_names=[t.name for t in sim.targets], overwrite=overwrite, livox=livox,

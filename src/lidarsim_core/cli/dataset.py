@@ -60,7 +60,7 @@ def _dataset(source: Path, out: Path, frames: int | None, fmt: str | None,
     if quiet:
         return
     rate = result.frames_written / result.elapsed_s if result.elapsed_s > 0 else 0.0
-    from rich.markup import escape
+    from .output import markup_safe as escape
 
     console().print(
         f"dataset {escape(str(result.root))}: {result.frames_total} frames ({result.frames_written} written, "

@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any
 
 import typer
-from rich.markup import escape
+from .output import markup_safe as escape
 
 from .app import app
 from .errors import check_number_option, check_seed_option, run_guarded

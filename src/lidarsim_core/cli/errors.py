@@ -15,9 +15,12 @@ from .output import console
 def fail(message: str, code: int) -> None:
     from rich.text import Text
 
-    # a Text is never parsed for markup: file names, keys and values are printed verbatim
-    console(stderr=True).print(Text.assemble(("error:", "bold red"), " ", message),
-                                soft_wrap=True)
+    from ..base.terminal import terminal_safe
+
+    # a Text is never parsed for markup: file names, keys and values are printed verbatim,
+    # with control characters shown as escapes (a name holding ESC [2J clears no screen)
+    console(stderr=True).print(Text.assemble(("error:", "bold red"), " ",
+                                             terminal_safe(message)), soft_wrap=True)
     raise typer.Exit(code)
 
 
@@ -64,12 +67,13 @@ def run_guarded(func: Callable[[], Any]) -> Any:
     """
     from ..base.errors import PluginError
     from ..base.numerics import quiet_numerics
+    from ..base.outputs import tracking_inputs
     from ..base.oserrors import os_error_line
     from ..base.signals import SIGTERM_EXIT_CODE, Terminated, interrupt_behind
 
     try:
         try:
-            with quiet_numerics():
+            with quiet_numerics(), tracking_inputs():  # outputs never replace inputs
                 return func()
         except Exception as exc:  # an interrupt surfacing through a compiled kernel
             interrupt = interrupt_behind(exc)

@@ -59,16 +59,21 @@ def evaluate(dataset: Path = typer.Argument(..., help="Dataset directory made by
                                         "summary's within_rate."),
              quiet: bool = typer.Option(False, "--quiet", "-q", help="No progress bar, no "
                                         "summary."),
+             no_verify: bool = typer.Option(False, "--no-verify", help="Skip recomputing "
+                                            "every frame file's SHA-256 against the "
+                                            "manifest (faster; paths and poses are still "
+                                            "checked)."),
              ) -> None:
     """Score a pose estimator on every frame of a dataset: estimates, metrics, summary, plots,
     HTML report."""
     run_guarded(lambda: _evaluate(dataset, estimator, out, option, split, target, symmetry,
-                                  segment, seed, range_bins, within, quiet))
+                                  segment, seed, range_bins, within, quiet,
+                                  verify=not no_verify))
 
 
 def _evaluate(dataset: Path, estimator: str, out: Path, option: list[str], split: str | None,
               target: str | None, symmetry: list[str], segment: bool, seed: int,
-              range_bins: str, within: str, quiet: bool) -> None:
+              range_bins: str, within: str, quiet: bool, *, verify: bool = True) -> None:
     from ..base.errors import ConfigError
     from ..evaluate import evaluate_dataset, parse_symmetry
     from .progress import EvaluateBar
@@ -94,7 +99,7 @@ def _evaluate(dataset: Path, estimator: str, out: Path, option: list[str], split
     result = evaluate_dataset(dataset, out, estimator, parse_options(option), split=split,
                               target=target, symmetries=symmetries, segment=segment, seed=seed,
                               range_bins_m=bins, within=thresholds,  # type: ignore[arg-type]
-                              quiet=quiet, display=EvaluateBar())
+                              quiet=quiet, display=EvaluateBar(), verify=verify)
     if quiet:
         return
     overall = result.summary["overall"]
@@ -103,7 +108,9 @@ def _evaluate(dataset: Path, estimator: str, out: Path, option: list[str], split
     median = "no valid estimate" if t is None else \
         f"median errors {t:.4g} m, {r:.4g}°, SPEED score {s:.4g}; " \
         f"{overall['within_rate'] * 100:.3g} % within {thresholds[0]:g} m and {thresholds[1]:g}°"
+    from .output import markup_safe
+
     console().print(
-        f"evaluate {estimator}: {result.frames_total} frames ({result.frames_evaluated} run, "
+        f"evaluate {markup_safe(estimator)}: {result.frames_total} frames ({result.frames_evaluated} run, "
         f"{result.frames_skipped} already done), {overall['successes']} with an estimate; "
-        f"{median} → {result.out / 'report.html'}")
+        f"{median} → {markup_safe(result.out / 'report.html')}")

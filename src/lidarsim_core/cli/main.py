@@ -7,7 +7,7 @@ import sys
 from typing import Any
 
 import typer
-from rich.markup import escape
+from .output import markup_safe as escape
 
 # isort: off
 # every command module adds its commands to the app when imported (one module per command),

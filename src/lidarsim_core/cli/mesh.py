@@ -19,6 +19,7 @@ import typer
 
 from ..base.errors import OutputError
 from ..base.outputs import make_parent
+from ..base.terminal import terminal_safe
 from .app import app
 from .errors import run_guarded
 
@@ -90,24 +91,24 @@ def _mesh(source: str, out: Path, option: list[str], fmt: str, overwrite: bool) 
     for (name, mesh_), target in zip(targets, jobs):
         make_parent(target)
         export_mesh(mesh_, target, overwrite=overwrite)
-        typer.echo(f"{name}: {mesh_.n_faces:,} triangles, {len(mesh_.part_names)} parts "
-                   f"({', '.join(mesh_.part_names)}) → {target}")
+        typer.echo(terminal_safe(f"{name}: {mesh_.n_faces:,} triangles, "
+                                 f"{len(mesh_.part_names)} parts "
+                                 f"({', '.join(mesh_.part_names)}) → {target}"))
 
 
 def _checked_outputs(out: Path, names: list[str], suffix: str, overwrite: bool) -> list[Path]:
     """The files to write, every one checked (format, overwrite policy, folder that can be
     created) before any mesh is built or written; an ``.obj`` brings its ``.mtl``."""
-    from ..base.outputs import check_file
-    from ..io.meshfile import MESH_EXPORT_SUFFIXES
+    from ..base.outputs import check_group
+    from ..io.meshfile import MESH_EXPORT_SUFFIXES, mesh_output_files
 
     jobs = _outputs(out, names, suffix)
     for target in jobs:
         if target.suffix.lower() not in MESH_EXPORT_SUFFIXES:
             raise OutputError(f"no mesh format for suffix '{target.suffix or '(none)'}'; known: "
                               f"{', '.join(MESH_EXPORT_SUFFIXES)}", source=target)
-        check_file(target, overwrite=overwrite)
-        if target.suffix.lower() == ".obj":
-            check_file(target.with_suffix(".mtl"), overwrite=overwrite)
+    # every file of every target (an OBJ's MTL too), all checked before the first is written
+    check_group([f for target in jobs for f in mesh_output_files(target)], overwrite=overwrite)
     return jobs
 
 

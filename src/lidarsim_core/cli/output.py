@@ -17,12 +17,23 @@ import sys
 from dataclasses import dataclass
 from typing import Any, Iterable, Sequence
 
+from ..base.terminal import terminal_safe
+
 
 def console(stderr: bool = False):
     """A rich console that never inserts line breaks into printed text (``soft_wrap``)."""
     from rich.console import Console
 
     return Console(stderr=stderr, highlight=False, soft_wrap=True)
+
+
+def markup_safe(text: object) -> str:
+    """``text`` ready for a rich f-string: control characters shown as escapes
+    (:func:`~lidarsim_core.base.terminal.terminal_safe`) and square brackets escaped, so a
+    name from a file is printed as it is and never drives the terminal or rich's markup."""
+    from rich.markup import escape
+
+    return escape(terminal_safe(text))
 
 
 def stdout_is_terminal() -> bool:
@@ -67,7 +78,7 @@ def write_stdout(text: str) -> None:
 
 def plain_table(columns: Sequence[Column], rows: Iterable[Sequence[Any]]) -> str:
     """Rows aligned in columns with two spaces between them, headers first (for pipes)."""
-    cells = [[c.header for c in columns]] + [[str(v) for v in row] for row in rows]
+    cells = [[c.header for c in columns]] + [[terminal_safe(v) for v in row] for row in rows]
     widths = [max(len(row[i]) for row in cells) for i in range(len(columns))]
     lines = []
     for row in cells:
@@ -79,8 +90,9 @@ def plain_table(columns: Sequence[Column], rows: Iterable[Sequence[Any]]) -> str
 
 def print_table(columns: Sequence[Column], rows: Iterable[Sequence[Any]], *,
                 title: str | None = None) -> None:
-    """Print a table: rich at a terminal, :func:`plain_table` otherwise."""
-    rows = [list(row) for row in rows]
+    """Print a table: rich at a terminal, :func:`plain_table` otherwise (every cell through
+    :func:`~lidarsim_core.base.terminal.terminal_safe`)."""
+    rows = [[terminal_safe(v) for v in row] for row in rows]
     if not stdout_is_terminal():
         write_stdout((title + "\n" if title else "") + plain_table(columns, rows))
         return
@@ -149,6 +161,7 @@ class RayProgress:
     def __enter__(self) -> "RayProgress":
         out = console(stderr=True)
         if out.is_terminal:
+            from rich.markup import escape
             from rich.progress import (
                 BarColumn,
                 MofNCompleteColumn,
@@ -159,7 +172,7 @@ class RayProgress:
             )
 
             self._progress = Progress(
-                TextColumn(f"[bold]{self.label}[/] rays"), BarColumn(), MofNCompleteColumn(),
+                TextColumn(f"[bold]{escape(terminal_safe(self.label))}[/] rays"), BarColumn(), MofNCompleteColumn(),
                 TimeElapsedColumn(), TextColumn("ETA"), TimeRemainingColumn(),
                 console=out, transient=True)
             self._progress.start()

@@ -81,9 +81,9 @@ def _export(sensor: str, duration: float, out: Path, start: float, options: list
     make_parent(out)
     with atomic_output(out, overwrite=overwrite) as stream:
         stream.write(buffer.getvalue())
-    from rich.markup import escape
+    from .output import markup_safe as escape
 
-    make_console().print(f"{pat.sensor.name} ({pat.name}): {len(batch):,} rays in "
+    make_console().print(f"{escape(pat.sensor.name)} ({escape(pat.name)}): {len(batch):,} rays in "
                      f"\\[{start:g}, {start + duration:g}) s → {escape(str(out))}")
 
 
@@ -123,8 +123,10 @@ def _coverage(sensor: str, time_s: float, cell_deg: float, bin_deg: float, start
     if as_json:
         print_json(report.to_dict())
         return
+    from .output import markup_safe
+
     console = make_console()
-    console.print(f"[bold]{report.sensor}[/] ({report.pattern}): {100 * report.coverage:.1f} % "
+    console.print(f"[bold]{markup_safe(report.sensor)}[/] ({markup_safe(report.pattern)}): {100 * report.coverage:.1f} % "
                   f"of {report.cells_in_fov:,} cells of {cell_deg:g}° hit in {time_s:g} s "
                   f"({report.rays:,} rays; {report.projection} cells)")
     print_table([Column(c, right=True) for c in ("off-axis °", "points", "solid angle deg²",

@@ -14,6 +14,8 @@ from typing import Optional
 
 import typer
 
+from ..base.terminal import terminal_safe
+
 from .app import app
 from .errors import run_guarded
 
@@ -57,5 +59,5 @@ def _poses(path: Path, out: Path, clouds: str | None, frame: int | None,
     infos = sequence_frame_infos(scenario, indices)
     make_parent(out)
     write_ground_truth(out, infos, clouds=names, overwrite=overwrite)
-    typer.echo(f"wrote poses of {len(infos)} frame(s) and {len(infos[0].target_names)} "
-               f"target(s) to {out}")
+    typer.echo(terminal_safe(f"wrote poses of {len(infos)} frame(s) and "
+                             f"{len(infos[0].target_names)} target(s) to {out}"))

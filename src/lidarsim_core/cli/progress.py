@@ -1,5 +1,9 @@
 """The command line's progress bars (rich, on stderr): the displays that dataset generation,
-bags and evaluation report their progress to."""
+bags and evaluation report their progress to.
+
+A bar is drawn only when stderr is a terminal: in a pipe, a log file or a CI job it would be
+one more line around the error line (rich prints the final bar when the console is not
+interactive), so there the displays stay silent."""
 
 from __future__ import annotations
 
@@ -16,20 +20,31 @@ from rich.progress import (
 )
 
 
+def _stderr_console() -> Console | None:
+    """A console on stderr when it is a terminal, else ``None`` (no bar)."""
+    console = Console(stderr=True)
+    return console if console.is_terminal else None
+
+
 class FrameBar:
     """Frames written, frames per second and time left
-    (a :class:`~lidarsim_core.dataset.progress.FrameProgress` display)."""
+    (a :class:`~lidarsim_core.dataset.progress.FrameProgress` display); silent when stderr
+    is not a terminal."""
 
     def __init__(self) -> None:
+        self._console = _stderr_console()
         self._progress = Progress(
             TextColumn("[bold]frames"), BarColumn(), MofNCompleteColumn(),
             TextColumn("{task.fields[rate]} frames/s"), TimeElapsedColumn(),
             TextColumn("ETA"), TimeRemainingColumn(),
-            console=Console(stderr=True), transient=False)
+            console=self._console or Console(stderr=True), transient=False,
+            disable=self._console is None)
         self._task: Any = None
 
     def start(self, total: int, already: int) -> None:
         """Show the bar for ``total`` frames still to write (``already`` were done)."""
+        if self._console is None:
+            return
         self._progress.start()
         self._task = self._progress.add_task("frames", total=total, rate="-")
         if already:
@@ -37,36 +52,47 @@ class FrameBar:
 
     def update(self, written: int, rate: float) -> None:
         """``written`` frames so far at ``rate`` frames per second."""
+        if self._task is None:
+            return
         self._progress.update(self._task, completed=written, rate=f"{rate:.2f}")
 
     def stop(self) -> None:
         """Leave the finished bar on the terminal."""
-        self._progress.stop()
+        if self._task is not None:
+            self._progress.stop()
 
 
 class EvaluateBar:
-    """Frames evaluated, failures and time left (the display of ``lidarsim evaluate``)."""
+    """Frames evaluated, failures and time left (the display of ``lidarsim evaluate``);
+    silent when stderr is not a terminal."""
 
     def __init__(self) -> None:
+        self._console = _stderr_console()
         self._progress = Progress(
             TextColumn("[bold]evaluate"), BarColumn(), MofNCompleteColumn(),
             TextColumn("{task.fields[failures]} failed"), TimeElapsedColumn(),
-            TextColumn("ETA"), TimeRemainingColumn(), console=Console(stderr=True))
+            TextColumn("ETA"), TimeRemainingColumn(),
+            console=self._console or Console(stderr=True), disable=self._console is None)
         self._task: Any = None
 
     def start(self, total: int, done: int) -> None:
         """Show the bar for ``total`` frames, ``done`` of them already evaluated."""
+        if self._console is None:
+            return
         self._progress.start()
         self._task = self._progress.add_task("frames", total=total, completed=done,
                                              failures=0)
 
     def advance(self, failures: int) -> None:
         """One more frame evaluated; ``failures`` so far."""
+        if self._task is None:
+            return
         self._progress.update(self._task, advance=1, failures=failures)
 
     def stop(self) -> None:
         """Leave the finished bar on the terminal."""
-        self._progress.stop()
+        if self._task is not None:
+            self._progress.stop()
 
 
 def status(line: str) -> None:

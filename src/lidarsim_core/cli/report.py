@@ -56,7 +56,7 @@ def _report(run: Path, out: Path | None, scenario: Path | None, frame: int | Non
 
 def print_report_summary(result: Any) -> None:
     """Print where a report went, its key numbers and its notes (used by ``demo`` too)."""
-    from rich.markup import escape
+    from .output import markup_safe as escape
 
     from .output import console as make_console
 
@@ -86,7 +86,7 @@ def demo_report(out: Path, *, quiet: bool = False) -> Any:
 
     Without the viz extra the demo still succeeds: one line says how to get the figures.
     """
-    from rich.markup import escape
+    from .output import markup_safe as escape
 
     from ..report import VizMissing, write_report
     from .output import console

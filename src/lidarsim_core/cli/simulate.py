@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import Any, Optional
 
 import typer
-from rich.markup import escape
+from .output import markup_safe as escape
 
 from .app import app
 from .errors import check_seed_option, run_guarded
@@ -82,7 +82,7 @@ def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwri
         from .bag import simulate_to_bag
 
         return simulate_to_bag(scenario, frames, out, overwrite=overwrite, livox=livox,
-                               range_image=range_image)
+                               range_image=range_image, source=path)
     if livox:
         raise OutputError("--livox applies to a ROS 2 bag (--out run.mcap)", source=out)
     templated = has_frame_field(out)
@@ -100,17 +100,24 @@ def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwri
                           source=exc.source, field=exc.field) from None
     for target in targets:  # every output is checked before any work (lidarsim_core.base.outputs)
         check_file(target, overwrite=overwrite)
+    if range_image:  # the cloud and its range image are one group: all checked, then written
+        from ..base.outputs import check_group
+        from ..io.rangeimage import range_image_files
+
+        check_group([f for target in targets for f in range_image_files(target)],
+                    overwrite=overwrite)
     sim = Simulation(scenario)  # guards third-party components itself
-    if range_image:  # the images' layout and files, checked before anything is simulated
-        from ..io.rangeimage import check_layout, range_image_paths
+    from ..base.outputs import check_not_input
+
+    for target in targets:  # the meshes and keyframes the simulation has just read too
+        check_not_input(target)
+    if range_image:  # the images' layout, checked before anything is simulated
+        from ..io.rangeimage import check_layout
 
         try:
             check_layout(sim.pattern, [(i.t_start, i.t_end) for i in sim.frame_infos(frames)])
         except ConfigError as exc:  # name the scenario file the field is in
             raise ConfigError(exc.message, source=exc.source or path, field=exc.field) from None
-        for target in targets:
-            for image in range_image_paths(target):
-                check_file(image, overwrite=overwrite)
     console = make_console()
     for f, target in zip(frames, targets):
         t0 = time.perf_counter()

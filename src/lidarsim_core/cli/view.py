@@ -19,6 +19,8 @@ from typing import Any, Optional
 
 import typer
 
+from ..base.terminal import terminal_safe
+
 from .app import app
 from .errors import run_guarded
 
@@ -145,8 +147,8 @@ def _view(path: Path, color_by: str, screenshot: Path | None, frame: int | None,
     make_parent(screenshot)
     save_plotter(plotter, screenshot)
     n = sum(len(c) for _, c in clouds)
-    typer.echo(f"wrote {screenshot} ({n:,} points coloured by {color_by}"
-               f"{f', {len(meshes)} target mesh(es)' if meshes else ''})")
+    typer.echo(terminal_safe(f"wrote {screenshot} ({n:,} points coloured by {color_by}"
+                             f"{f', {len(meshes)} target mesh(es)' if meshes else ''})"))
 
 
 #: Solid colours of the clouds after the first in one view (the first is coloured by

@@ -11,7 +11,8 @@ from typing import Any
 
 import yaml
 
-from ..base.errors import OutputError
+from ..base.config_io import read_text_file
+from ..base.errors import OutputError, UserInputError
 from .config import DatasetPlan
 from .identity import (
     differences,
@@ -110,9 +111,9 @@ def refuse(root: Path, lines: list[str]) -> None:
 
 
 def old_scenario(path: Path) -> dict[str, Any] | None:
-    try:
-        return yaml.safe_load(path.read_text(encoding="utf-8"))
-    except (OSError, yaml.YAMLError):
+    try:  # the bounded reader: a FIFO or a huge file in its place is not read
+        return yaml.safe_load(read_text_file(path, "dataset scenario"))
+    except (UserInputError, yaml.YAMLError, RecursionError):
         return None
 
 

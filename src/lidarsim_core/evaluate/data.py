@@ -9,6 +9,7 @@ target's mesh, which is loaded by the simulation's own loader.
 from __future__ import annotations
 
 import json
+import math
 import re
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -18,17 +19,19 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
-from ..base.errors import ConfigError
+from ..base.config_io import read_text_file
+from ..base.errors import ConfigError, UserInputError
 from .base import TargetModelData
 
 
 @dataclass
 class FrameEntry:
-    """One frame file of a sequence."""
+    """One frame file of a sequence (``sha256``: its checksum in the manifest)."""
 
     frame: int
     path: Path
     points: int
+    sha256: str | None = None
 
 
 @dataclass
@@ -53,6 +56,7 @@ class SequenceData:
         if not isinstance(frames, list) or len(frames) < len(self.frames):
             raise ConfigError("holds fewer frames than the manifest lists",
                               source=self.poses_path, field="frames")
+        check_poses(data, self.poses_path, [entry.frame for entry in self.frames])
         return data
 
     @property
@@ -116,6 +120,132 @@ class SequenceData:
         return self.poses.get("motion") == "frozen"
 
 
+#: How far from 1 the norm of a stored quaternion may be (they are written with 17 digits).
+UNIT_TOLERANCE = 1e-6
+
+
+def check_poses(data: dict[str, Any], path: Path, frames: list[int]) -> None:
+    """Validate the truth of a sequence's ``poses.json`` for ``frames`` before anything is
+    scored: every frame at its place, finite frame times with ``t_start_s <= t_end_s``, one
+    record per target, finite positions and unit quaternions at frame start and end.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``path`` and the field (``frames.3.targets.0.q_target_in_sensor``).
+    """
+    names = data.get("target_names")
+    if not isinstance(names, list) or not names:
+        raise ConfigError("lists no targets", source=path, field="target_names")
+    records = data["frames"]
+    for frame in frames:
+        where = f"frames.{frame}"
+        if not 0 <= frame < len(records) or not isinstance(records[frame], dict):
+            raise ConfigError("the frame is missing", source=path, field=where)
+        record = records[frame]
+        if record.get("frame") != frame:
+            raise ConfigError(f"frame {frame} is not at its place in the frame list",
+                              source=path, field=where)
+        times = [_number(record, key, path, where) for key in ("t_start_s", "t_end_s")]
+        if times[1] < times[0]:
+            raise ConfigError(f"the frame ends ({times[1]:g} s) before it starts "
+                              f"({times[0]:g} s)", source=path, field=f"{where}.t_end_s")
+        targets = record.get("targets")
+        if not isinstance(targets, list) or len(targets) != len(names):
+            raise ConfigError(f"holds {len(targets) if isinstance(targets, list) else 'no'} "
+                              f"target records for {len(names)} targets", source=path,
+                              field=f"{where}.targets")
+        for i, target in enumerate(targets):
+            at = f"{where}.targets.{i}"
+            if not isinstance(target, dict):
+                raise ConfigError("is not a mapping", source=path, field=at)
+            for key in ("q_target_in_sensor", "q_target_in_sensor_end"):
+                q = _vector(target, key, 4, path, at)
+                if abs(float(np.linalg.norm(q)) - 1.0) > UNIT_TOLERANCE:
+                    raise ConfigError(f"quaternion of norm {np.linalg.norm(q):.6g} is not a "
+                                      "unit quaternion", source=path, field=f"{at}.{key}")
+            for key in ("r_target_in_sensor_m", "r_target_in_sensor_end_m"):
+                _vector(target, key, 3, path, at)
+
+
+def _number(record: dict[str, Any], key: str, path: Path, where: str) -> float:
+    value = record.get(key)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or \
+            not math.isfinite(value):
+        raise ConfigError(f"{value!r} is not a finite number", source=path,
+                          field=f"{where}.{key}")
+    return float(value)
+
+
+def _vector(record: dict[str, Any], key: str, size: int, path: Path, where: str
+            ) -> np.ndarray:
+    value = record.get(key)
+    if not isinstance(value, list) or len(value) != size or \
+            any(isinstance(v, bool) or not isinstance(v, (int, float)) for v in value):
+        raise ConfigError(f"is not a list of {size} numbers", source=path,
+                          field=f"{where}.{key}")
+    array = np.asarray(value, dtype=np.float64)
+    if not np.all(np.isfinite(array)):
+        raise ConfigError(f"holds a value that is not finite ({value})", source=path,
+                          field=f"{where}.{key}")
+    return array
+
+
+def inside_dataset(root: Path, name: object, *, manifest: Path, field: str) -> Path:
+    """``root / name`` for a file name read from the manifest, refused unless it stays inside
+    the dataset: a relative path without ``..``, and, once symbolic links are resolved, still
+    under ``root`` (a link out of the dataset is refused too).
+
+    Raises
+    ------
+    ConfigError
+        Naming the manifest and ``field``.
+    """
+    if not isinstance(name, str) or not name:
+        raise ConfigError(f"{name!r} is not a file name", source=manifest, field=field)
+    relative = Path(name)
+    if relative.is_absolute() or ".." in relative.parts or "\0" in name:
+        raise ConfigError(f"'{name}' is not a path inside the dataset (absolute paths and "
+                          "'..' are refused)", source=manifest, field=field)
+    path = root / relative
+    try:
+        resolved = path.resolve()
+        base = root.resolve()
+    except (OSError, RuntimeError) as exc:
+        raise ConfigError(f"'{name}' cannot be resolved ({exc})", source=manifest,
+                          field=field) from None
+    if resolved != base and base not in resolved.parents:
+        raise ConfigError(f"'{name}' is a symbolic link out of the dataset (to {resolved})",
+                          source=manifest, field=field)
+    return path
+
+
+def verify_checksums(sequences: list["SequenceData"], manifest: Path) -> None:
+    """Recompute every frame file's SHA-256 and compare it with the manifest's.
+
+    Raises
+    ------
+    ConfigError
+        Naming the frame file whose content differs from what the dataset wrote (a frame
+        copied over another, a truncated or edited file) or that has no checksum.
+    """
+    from ..base.config_io import check_input_file
+    from ..io.sidecar import sha256_file
+
+    for seq in sequences:
+        for entry in seq.frames:
+            if not isinstance(entry.sha256, str):
+                raise ConfigError("the manifest lists no sha256 for this frame (use "
+                                  "--no-verify to skip the check)", source=entry.path,
+                                  field="sha256")
+            check_input_file(entry.path, "frame file", limit_name="data_bytes")
+            if sha256_file(entry.path) != entry.sha256:
+                raise ConfigError("the file's SHA-256 differs from the manifest's: it is not "
+                                  "the frame the dataset wrote (edited, truncated or "
+                                  "replaced; use --no-verify to skip the check)",
+                                  source=entry.path, field="sha256")
+
+
 def _manifest(root: Path) -> dict[str, Any]:
     from ..base.config_io import read_json_file
     from ..dataset.layout import MANIFEST
@@ -136,8 +266,13 @@ def _manifest(root: Path) -> dict[str, Any]:
     return data
 
 
-def open_dataset(root: str | Path, split: str | None = None) -> tuple[list[SequenceData], str]:
+def open_dataset(root: str | Path, split: str | None = None, *, verify: bool = True
+                 ) -> tuple[list[SequenceData], str]:
     """The sequences of the dataset at ``root`` (those of ``split`` only, if given).
+
+    Every file the manifest names must lie inside the dataset (no absolute path, no ``..``,
+    no symbolic link out); with ``verify`` (the default) every frame file's SHA-256 is
+    recomputed and compared with the manifest's before anything is evaluated.
 
     Returns
     -------
@@ -148,7 +283,8 @@ def open_dataset(root: str | Path, split: str | None = None) -> tuple[list[Seque
     Raises
     ------
     ConfigError
-        Not a complete dataset, an unknown split, or a split the dataset does not have.
+        Not a complete dataset, an unknown split, a split the dataset does not have, a file
+        outside the dataset or (``verify``) a frame whose checksum differs.
     """
     import hashlib
 
@@ -158,7 +294,9 @@ def open_dataset(root: str | Path, split: str | None = None) -> tuple[list[Seque
     root = Path(root)
     manifest = _manifest(root)
     fingerprint = hashlib.sha256((root / MANIFEST).read_bytes()).hexdigest()
-    if (manifest.get("identity") or {}).get("exporter", {}).get("name") == "mcap":
+    identity = manifest.get("identity")
+    exporter = identity.get("exporter") if isinstance(identity, dict) else None
+    if isinstance(exporter, dict) and exporter.get("name") == "mcap":
         raise ConfigError("this dataset holds ROS 2 bags (--format mcap); evaluate reads "
                           "datasets of frame files (e.g. --format npz)", source=root)
     if split is not None:
@@ -169,21 +307,39 @@ def open_dataset(root: str | Path, split: str | None = None) -> tuple[list[Seque
             raise ConfigError("this dataset has a single sequence and no splits; drop "
                               "--split", source=root, field="--split")
     sequences = []
-    for i, seq in enumerate(manifest.get("sequences") or []):
+    listed = manifest.get("sequences") or []
+    if not isinstance(listed, list):
+        raise ConfigError("is not a list of sequences", source=root / MANIFEST,
+                          field="sequences")
+    for i, seq in enumerate(listed):
         try:
+            if not isinstance(seq, dict):
+                raise TypeError("not a mapping")
             if split is not None and seq.get("split") != split:
                 continue
-            seq_root = root / seq["root"]
-            frames = [FrameEntry(int(f["frame"]), root / f["file"], int(f["points"]))
-                      for f in seq["frames"]]
+            manifest_path = root / MANIFEST
+            at = f"sequences.{i}"
+            seq_root = inside_dataset(root, seq["root"], manifest=manifest_path,
+                                      field=f"{at}.root")
+            frames = [FrameEntry(int(f["frame"]),
+                                 inside_dataset(root, f["file"], manifest=manifest_path,
+                                                field=f"{at}.frames.{j}.file"),
+                                 int(f["points"]), f.get("sha256"))
+                      for j, f in enumerate(seq["frames"])]
+            poses = inside_dataset(root, str(Path(seq["root"]) / seq["poses"]),
+                                   manifest=manifest_path, field=f"{at}.poses")
+            scenario = inside_dataset(root, str(Path(seq["root"]) / seq["scenario"]),
+                                      manifest=manifest_path, field=f"{at}.scenario")
             sequences.append(SequenceData(str(seq["name"]), seq_root, seq.get("split"), frames,
-                                          seq_root / seq["poses"], seq_root / seq["scenario"]))
-        except (KeyError, TypeError, ValueError) as exc:
+                                          poses, scenario))
+        except (KeyError, TypeError, ValueError, AttributeError, OverflowError) as exc:
             raise ConfigError(f"malformed sequence entry ({type(exc).__name__}: {exc})",
                               source=root / MANIFEST, field=f"sequences.{i}") from None
     if not sequences:
         where = f"in split '{split}'" if split else "in the manifest"
         raise ConfigError(f"no sequences {where}", source=root, field="--split" if split else None)
+    if verify:
+        verify_checksums(sequences, root / MANIFEST)
     return sequences, fingerprint
 
 
@@ -213,7 +369,7 @@ def safe_name(name: str) -> str:
 
 def load_json(path: Path) -> Any:
     """Parse a JSON file, ``None`` when missing or unreadable."""
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError):
+    try:  # the bounded reader: a FIFO or a huge file in its place is not read
+        return json.loads(read_text_file(path, "evaluation record"))
+    except (UserInputError, json.JSONDecodeError, RecursionError):
         return None

@@ -223,7 +223,8 @@ def evaluate_dataset(dataset: str | Path, out: str | Path, estimator: str,
                      range_bins_m: Iterable[float] = DEFAULT_RANGE_BINS_M,
                      within: tuple[float, float] = DEFAULT_WITHIN,
                      quiet: bool = True, registry: Any = None, display: Any = None,
-                     timer: Callable[[], float] = time.perf_counter) -> EvaluationResult:
+                     timer: Callable[[], float] = time.perf_counter,
+                     verify: bool = True) -> EvaluationResult:
     """Score estimator ``estimator`` on every frame of the dataset at ``dataset``.
 
     Parameters
@@ -259,6 +260,10 @@ def evaluate_dataset(dataset: str | Path, out: str | Path, estimator: str,
         Draws the progress unless ``quiet`` (``lidarsim evaluate`` passes its progress bar).
     timer
         Clock used to time each call (seconds).
+    verify
+        Recompute every frame file's SHA-256 and compare it with the manifest's before
+        anything is written (the default; ``False`` skips it for speed). Paths outside the
+        dataset and malformed ``poses.json`` files are refused either way.
 
     Raises
     ------
@@ -281,7 +286,7 @@ def evaluate_dataset(dataset: str | Path, out: str | Path, estimator: str,
         raise ConfigError("range bin edges must be finite and ascending", field="--range-bins")
     symmetries = list(symmetries)
     group = SymmetryGroup.from_symmetries(symmetries)
-    sequences, fingerprint = open_dataset(dataset, split)
+    sequences, fingerprint = open_dataset(dataset, split, verify=verify)
     indices = [seq.target_index(target) for seq in sequences]
     config = {"format": CONFIG_FORMAT, "version": CONFIG_VERSION,
               "dataset_manifest_sha256": fingerprint, "estimator": estimator,

@@ -58,6 +58,7 @@ from ..base.errors import ConfigError, OutputError
 from ..base.optional import require
 from ..hookspecs import hookimpl
 from .base import Exporter
+from .columns import cast_column, check_input, check_record_count
 
 if TYPE_CHECKING:
     from ..records.pointcloud import PointCloud
@@ -272,19 +273,29 @@ def read_las_columns(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str,
     """
     from ..records.pointcloud import POINT_FIELDS
 
+    path = Path(path)
+    size = check_input(path, "LAS/LAZ file")
     laspy = _laspy()
+    _check_las_header(laspy, path, size)
     try:
         data = laspy.read(str(path))
     except Exception as exc:  # laspy raises its own and many other types on bad files
-        raise ConfigError(f"cannot read LAS/LAZ: {type(exc).__name__}: {exc}",
-                          source=path) from None
+        raise ConfigError(f"cannot read LAS/LAZ: {type(exc).__name__}: "
+                          f"{' '.join(str(exc).split())[:200]}", source=path) from None
     blob, scale = None, UNIT_INTENSITY_SCALE
     for vlr in [*data.header.vlrs, *data.header.evlrs]:
-        if vlr.user_id == METADATA_USER_ID and vlr.record_id == METADATA_RECORD_ID:
-            blob = vlr.record_data
-        if vlr.user_id == METADATA_USER_ID and vlr.record_id == INTENSITY_SCALE_RECORD_ID:
-            scale = read_intensity_scale(bytes(vlr.record_data), path)
-    metadata = json.loads(bytes(blob).decode("utf-8")) if blob is not None else None
+        user, record = getattr(vlr, "user_id", None), getattr(vlr, "record_id", None)
+        if user == METADATA_USER_ID and record == METADATA_RECORD_ID:
+            blob = getattr(vlr, "record_data", b"")
+        if user == METADATA_USER_ID and record == INTENSITY_SCALE_RECORD_ID:
+            scale = read_intensity_scale(bytes(getattr(vlr, "record_data", b"")), path)
+    metadata = None
+    if blob is not None:
+        try:
+            metadata = json.loads(bytes(blob).decode("utf-8"))
+        except (UnicodeDecodeError, ValueError, RecursionError) as exc:
+            raise ConfigError(f"lidarsim's metadata VLR is not UTF-8 JSON ({exc})",
+                              source=path, field="VLR lidarsim/1") from None
     columns: dict[str, np.ndarray] = {
         "x": np.asarray(data.x, dtype=np.float64), "y": np.asarray(data.y, dtype=np.float64),
         "z": np.asarray(data.z, dtype=np.float64),
@@ -305,7 +316,8 @@ def read_las_columns(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str,
     if "part" not in columns:
         columns["part"] = (np.asarray(data.classification, dtype=np.int64)
                            - CLASS_OFFSET).astype(np.int16)
-    columns = {k: v.astype(POINT_FIELDS.get(k, v.dtype), copy=False) for k, v in columns.items()}
+    columns = {k: cast_column(v, POINT_FIELDS.get(k, v.dtype), source=path, field=k)
+               for k, v in columns.items()}
     return columns, metadata
 
 
@@ -326,6 +338,69 @@ def read_intensity_scale(record: bytes, source: str | Path) -> float:
         raise ConfigError("VLR lidarsim/4 is not {\"intensity_scale\": <positive number>}",
                           source=source, field="intensity_scale")
     return scale
+
+
+def _check_las_header(laspy: Any, path: Path, size: int) -> None:
+    """Refuse a LAS/LAZ whose header declares more points than the file can hold, before
+    laspy allocates them: an uncompressed LAS holds ``count × record length`` bytes after its
+    offset to point data; a LAZ is held to the ``rays_per_frame`` limit (a point per ray) and
+    to the ``data_bytes`` limit once decompressed."""
+    from ..base.limits import LIMITS, limit
+
+    _check_las_layout(path, size)  # counts laspy would loop over, before it does
+    try:
+        with laspy.open(str(path)) as reader:
+            header = reader.header
+            count = int(header.point_count)
+            record = int(header.point_format.size)
+            offset = int(header.offset_to_point_data)
+            compressed = bool(header.are_points_compressed)
+    except Exception as exc:  # laspy raises its own and many other types on bad headers
+        raise ConfigError(f"cannot read LAS/LAZ header: {type(exc).__name__}: "
+                          f"{' '.join(str(exc).split())[:200]}", source=path) from None
+    if compressed:
+        bound = limit("data_bytes")
+        if count * record > bound:
+            raise ConfigError(f"declares {count:,} points of {record} bytes, over the limit "
+                              f"of {bound:,.0f} bytes once decompressed (set "
+                              f"{LIMITS['data_bytes'].env} to raise it)", source=path,
+                              field="point count")
+        return
+    check_record_count(count, record, max(size - offset, 0), source=path, what="points",
+                       field="point count")
+
+
+#: Sizes of a VLR header and an EVLR header (LAS 1.4 specification).
+_VLR_HEADER = 54
+_EVLR_HEADER = 60
+
+
+def _check_las_layout(path: Path, size: int) -> None:
+    """The LAS header's own counts against the file: the VLRs must fit between the header
+    and the point data, the EVLRs after their start offset (laspy would otherwise create
+    millions of empty records for a count with one flipped byte, for minutes)."""
+    import struct
+
+    with open(path, "rb") as stream:
+        head = stream.read(375)
+    if len(head) < 227 or head[:4] != b"LASF":
+        raise ConfigError("not a LAS/LAZ file (no LASF signature or a header shorter than "
+                          "227 bytes)", source=path)
+    header_size, offset, vlrs = struct.unpack_from("<HII", head, 94)
+    if not header_size <= offset <= size:
+        raise ConfigError(f"offset to point data {offset:,} is outside the file ({size:,} "
+                          f"bytes, header {header_size} bytes)", source=path,
+                          field="offset to point data")
+    if vlrs * _VLR_HEADER > offset - header_size:
+        raise ConfigError(f"declares {vlrs:,} VLRs ({vlrs * _VLR_HEADER:,} bytes of their "
+                          f"headers at least) in the {offset - header_size:,} bytes between "
+                          "the header and the points", source=path, field="number of VLRs")
+    if head[24:26] >= b"\x01\x04" and len(head) >= 255:
+        start, evlrs = struct.unpack_from("<QI", head, 243)
+        if evlrs and (start > size or evlrs * _EVLR_HEADER > size - start):
+            raise ConfigError(f"declares {evlrs:,} extended VLRs from byte {start:,}, which "
+                              f"the file ({size:,} bytes) cannot hold", source=path,
+                              field="number of EVLRs")
 
 
 def read_las(path: str | Path) -> "PointCloud":

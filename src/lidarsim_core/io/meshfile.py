@@ -82,11 +82,14 @@ def _obj(mesh: Mesh, path: Path, overwrite: bool) -> None:
         _scene(mesh, materials=True), include_normals=False, include_texture=True,
         return_texture=True, write_texture=False, mtl_name=mtl_name, digits=10,
         header="lidarsim target mesh, body frame, metres")
-    for name, data in files.items():  # the MTL file (no textures)
-        with atomic_output(path.with_name(name), overwrite=overwrite) as stream:
+    from ..base.atomic import atomic_group
+
+    # every file is complete and on disk before any is renamed: a full disk leaves neither
+    # the OBJ nor its MTL (the MTL, then the OBJ)
+    names = [path.with_name(name) for name in files] + [path]
+    with atomic_group(names, overwrite=overwrite) as streams:
+        for stream, data in zip(streams, [*files.values(), text.encode("utf-8")]):
             stream.write(data)
-    with atomic_output(path, overwrite=overwrite) as stream:
-        stream.write(text.encode("utf-8"))
 
 
 def _ply(mesh: Mesh, path: Path, overwrite: bool) -> None:
@@ -118,6 +121,15 @@ def _trimesh_file(mesh: Mesh, path: Path, overwrite: bool, file_type: str) -> No
         stream.write(data if isinstance(data, bytes) else data.encode("utf-8"))
 
 
+def mesh_output_files(path: str | Path) -> list[Path]:
+    """Every file :func:`export_mesh` writes for ``path``: the OBJ and its MTL, or the one
+    file (checked as a group before any is written)."""
+    path = Path(path)
+    if path.suffix.lower() == ".obj":
+        return [path.with_suffix(".mtl"), path]
+    return [path]
+
+
 def export_mesh(mesh: Mesh, path: str | Path, *, overwrite: bool = False) -> Path:
     """Write ``mesh`` (body frame, metres) to ``path``; the suffix picks the format.
 
@@ -136,11 +148,15 @@ def export_mesh(mesh: Mesh, path: str | Path, *, overwrite: bool = False) -> Pat
     Path
         ``path``.
     """
+    from ..base.outputs import API_HINT, check_group
+
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in MESH_EXPORT_SUFFIXES:
         raise OutputError(f"no mesh format for suffix '{suffix or '(none)'}'; known: "
                           f"{', '.join(MESH_EXPORT_SUFFIXES)}", source=path)
+    # the OBJ and its MTL as a group: both may be written, or neither is
+    check_group(mesh_output_files(path), overwrite=overwrite, hint=API_HINT)
     if suffix == ".obj":
         _obj(mesh, path, overwrite)
     elif suffix == ".ply":

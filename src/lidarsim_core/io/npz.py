@@ -50,19 +50,81 @@ class NpzExporter(Exporter):
 def read_npz_columns(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str, Any] | None]:
     """The columns and frame metadata of an NPZ cloud (no pickles are read).
 
+    Before anything is inflated, every member's declared size is checked: the archive as a
+    whole inflates to no more than the ``data_bytes`` limit (a zip bomb is refused by its
+    directory), and each member's NPY header (shape × item size) agrees with the member's
+    size. Object arrays (pickles) are refused, and the columns are checked by
+    :func:`~lidarsim_core.io.columns.cloud_from_columns` (1-D, numbers, one length).
+
     Raises
     ------
     ConfigError
-        If the file is not a readable NPZ archive.
+        Naming the file and the defect, if it is not an NPZ archive lidarsim can read.
     """
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            meta = json.loads(str(data["frame_json"])) if "frame_json" in data.files else None
-            columns = {name: data[name] for name in data.files
-                       if name not in ("frame_json", "part_names", "target_names")}
-    except (OSError, ValueError) as exc:
-        raise ConfigError(f"cannot read NPZ: {exc}", source=path) from None
+    from ..base.limits import LIMITS, limit
+    from .columns import check_input, reader_errors
+
+    path = Path(path)
+    check_input(path, "NPZ file")
+    bound = limit("data_bytes")
+    columns: dict[str, np.ndarray] = {}
+    meta = None
+    with reader_errors(path, "NPZ file"), zipfile.ZipFile(path) as archive:
+        members = archive.infolist()
+        inflated = sum(info.file_size for info in members)
+        if inflated > bound:
+            raise ConfigError(f"NPZ archive inflates to {inflated:,} bytes, over the limit of "
+                              f"{bound:,.0f} (set {LIMITS['data_bytes'].env} to raise it)",
+                              source=path)
+        for info in members:
+            if not info.filename.endswith(".npy") or info.is_dir():
+                raise ConfigError(f"NPZ member '{info.filename}' is not an .npy array",
+                                  source=path, field=info.filename)
+            name = info.filename[:-len(".npy")]
+            with archive.open(info) as member:
+                array = _read_member(member, info.file_size, path, name)
+            if name == "frame_json":
+                if array.ndim != 0 or array.dtype.kind != "U":
+                    raise ConfigError("frame_json is not one string", source=path,
+                                      field="frame_json")
+                try:
+                    meta = json.loads(str(array))
+                except ValueError as exc:
+                    raise ConfigError(f"frame_json is not JSON ({exc})", source=path,
+                                      field="frame_json") from None
+            elif name not in ("part_names", "target_names"):
+                columns[name] = array
     return columns, meta
+
+
+def _read_member(member: IO[bytes], size: int, path: Path, name: str) -> np.ndarray:
+    """One ``.npy`` member, its header checked against its declared size before the data
+    is read (no pickles)."""
+    fmt = np.lib.format
+    version = fmt.read_magic(member)
+    if version == (1, 0):
+        shape, fortran, dtype = fmt.read_array_header_1_0(member)
+    elif version in ((2, 0), (3, 0)):
+        shape, fortran, dtype = fmt.read_array_header_2_0(member)
+    else:
+        raise ConfigError(f"NPY format version {version} is not supported", source=path,
+                          field=name)
+    if dtype.hasobject:
+        raise ConfigError("array holds Python objects (a pickle), which lidarsim never loads "
+                          "(allow_pickle=False)", source=path, field=name)
+    needed = int(np.prod(shape, dtype=object)) * dtype.itemsize
+    header = member.tell()
+    if needed != size - header:
+        raise ConfigError(f"NPY header declares shape {shape} of {dtype} ({needed:,} bytes) "
+                          f"but the member holds {size - header:,} bytes", source=path,
+                          field=name)
+    data = bytearray(needed)  # one writable buffer, filled in place
+    got = member.readinto(data) if needed else 0
+    if got != needed:
+        raise ConfigError(f"array is truncated: {got:,} of {needed:,} bytes",
+                          source=path, field=name)
+    array = np.frombuffer(data, dtype=dtype)
+    return array.reshape(shape, order="F" if fortran else "C")
 
 
 def read_npz(path: str | Path) -> "PointCloud":

@@ -35,6 +35,7 @@ from ..base.components import ComponentOptions
 from ..base.errors import ConfigError, OutputError
 from ..hookspecs import hookimpl
 from .base import Exporter
+from .columns import cast_column, check_input, check_record_count, reader_errors
 from .headermeta import metadata_from_lines, metadata_lines
 
 if TYPE_CHECKING:
@@ -133,41 +134,77 @@ def read_pcd_columns(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str,
     """
     from ..records.pointcloud import POINT_FIELDS
 
+
     path = Path(path)
+    size = check_input(path, "PCD file")
     header: dict[str, list[str]] = {}
     comments: list[str] = []
-    with open(path, "rb") as stream:
+    with open(path, "rb") as stream, reader_errors(path, "PCD file"):
         while True:
-            raw = stream.readline()
+            raw = stream.readline(_MAX_HEADER_BYTES)
             if not raw:
                 raise ConfigError("PCD header has no DATA line", source=path)
+            if stream.tell() > _MAX_HEADER_BYTES:
+                raise ConfigError(f"PCD header is longer than {_MAX_HEADER_BYTES:,} bytes",
+                                  source=path)
             line = raw.decode("utf-8", errors="replace").rstrip("\r\n")
             if line.startswith("#"):
                 comments.append(line)
             elif line.strip():
                 key, *values = line.split()
+                if key in header:
+                    raise ConfigError(f"PCD header has two {key} lines", source=path,
+                                      field=key)
                 header[key] = values
                 if key == "DATA":
                     break
         if header["DATA"] != ["binary"]:
             raise ConfigError(f"PCD DATA is {' '.join(header['DATA'])}, not binary", source=path)
-        try:
-            count = int(header["POINTS"][0])
-            kinds = {"F": "f", "I": "i", "U": "u"}
-            dtype = np.dtype([(name, f"<{kinds[t]}{s}") for name, t, s in
-                              zip(header["FIELDS"], header["TYPE"], header["SIZE"])])
-        except (KeyError, IndexError, ValueError, TypeError) as exc:
-            raise ConfigError(f"PCD header is incomplete or malformed ({exc})",
-                              source=path) from None
+        for key in ("FIELDS", "SIZE", "TYPE", "POINTS"):
+            if key not in header:
+                raise ConfigError(f"PCD header has no {key} line", source=path, field=key)
+        names, types, sizes = header["FIELDS"], header["TYPE"], header["SIZE"]
+        if not names or len(types) != len(names) or len(sizes) != len(names):
+            raise ConfigError(f"PCD header has {len(names)} FIELDS, {len(types)} TYPE and "
+                              f"{len(sizes)} SIZE entries", source=path, field="FIELDS")
+        if len(set(names)) != len(names):
+            raise ConfigError("PCD header names a field twice", source=path, field="FIELDS")
+        if header.get("COUNT", ["1"] * len(names)) != ["1"] * len(names):
+            raise ConfigError("PCD fields with COUNT other than 1 are not supported",
+                              source=path, field="COUNT")
+        kinds = {"F": "f", "I": "i", "U": "u"}
+        allowed = {"f": ("4", "8"), "i": ("1", "2", "4", "8"), "u": ("1", "2", "4", "8")}
+        for name, kind, width in zip(names, types, sizes):
+            if kind not in kinds or width not in allowed[kinds[kind]]:
+                raise ConfigError(f"PCD field '{name}' has TYPE {kind} SIZE {width}, not one "
+                                  "of F 4/8, I or U 1/2/4/8", source=path, field=name)
+        dtype = np.dtype([(name, f"<{kinds[t]}{s}") for name, t, s in zip(names, types, sizes)])
+        if len(header["POINTS"]) != 1:
+            raise ConfigError("PCD POINTS line does not hold one count", source=path,
+                              field="POINTS")
+        count = check_record_count(header["POINTS"][0], dtype.itemsize, size - stream.tell(),
+                                   source=path, what="points", field="POINTS")
         data = np.frombuffer(stream.read(count * dtype.itemsize), dtype=dtype)
-    if len(data) != count:
-        raise ConfigError(f"PCD file is truncated: {len(data)} of {count} points", source=path)
-    back = {pcd: column for column, pcd in PCD_NAMES.items()}
-    columns = {}
-    for name in dtype.names or ():
-        column = back.get(name, name)
-        columns[column] = data[name].astype(POINT_FIELDS.get(column, data[name].dtype))
-    return columns, metadata_from_lines(comments, _METADATA_PREFIX)
+        if len(data) != count:
+            raise ConfigError(f"PCD file is truncated: {len(data)} of {count} points",
+                              source=path)
+        back = {pcd: column for column, pcd in PCD_NAMES.items()}
+        columns = {}
+        for name in dtype.names or ():
+            column = back.get(name, name)
+            columns[column] = cast_column(data[name], POINT_FIELDS.get(column,
+                                                                        data[name].dtype),
+                                          source=path, field=name)
+        try:
+            metadata = metadata_from_lines(comments, _METADATA_PREFIX)
+        except ValueError as exc:
+            raise ConfigError(f"the lidarsim-frame comments are not JSON ({exc})",
+                              source=path, field="# lidarsim-frame") from None
+    return columns, metadata
+
+
+#: Longest PCD header lidarsim reads (its own are a few KB).
+_MAX_HEADER_BYTES = 1 << 20
 
 
 def read_pcd(path: str | Path) -> "PointCloud":

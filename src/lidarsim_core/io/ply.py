@@ -45,6 +45,7 @@ from pydantic import Field
 from ..base.errors import ConfigError, OutputError
 from ..hookspecs import hookimpl
 from .base import Exporter
+from .columns import check_input, check_record_count, reader_errors
 from .dialects import Dialect, DialectOptions, column_name, record_names
 from .headermeta import metadata_from_lines, metadata_lines
 
@@ -165,55 +166,94 @@ def read_ply_columns(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str,
     ConfigError
         If the file is not a binary little-endian PLY with one vertex element of scalars.
     """
+
     path = Path(path)
-    comments: list[str] = []
-    props: list[tuple[str, str]] = []
-    count, fmt, element = None, None, None
-    with open(path, "rb") as stream:
-        if stream.readline().strip() != b"ply":
-            raise ConfigError("not a PLY file (no 'ply' magic line)", source=path)
-        while True:
-            raw = stream.readline()
-            if not raw:
-                raise ConfigError("PLY header has no end_header line", source=path)
-            line = raw.decode("utf-8", errors="replace").rstrip("\r\n")
-            words = line.split()
-            if not words:
-                continue
-            if words[0] == "end_header":
-                break
-            if words[0] == "comment":
-                comments.append(line[len("comment "):])
-            elif words[0] == "format":
-                fmt = words[1:2]
-            elif words[0] == "element":
-                element = words[1]
-                if element == "vertex":
-                    count = int(words[2])
-                elif int(words[2]) != 0:
-                    raise ConfigError(f"PLY element '{element}' is not supported (only a "
-                                      "vertex element)", source=path)
-            elif words[0] == "property" and element == "vertex":
-                if words[1] == "list" or words[1] not in PLY_TYPES:
-                    raise ConfigError(f"PLY property '{' '.join(words[1:])}' is not a scalar "
-                                      "of a known type", source=path, field=words[-1])
-                props.append((words[2], PLY_TYPES[words[1]]))
+    size = check_input(path, "PLY file")
+    with open(path, "rb") as stream, reader_errors(path, "PLY file"):
+        comments, props, count, fmt = _ply_header(stream, path)
         if fmt != ["binary_little_endian"]:
             raise ConfigError(f"PLY format {' '.join(fmt or ['(none)'])} is not "
                               "binary_little_endian", source=path)
         if count is None:
             raise ConfigError("PLY file has no vertex element", source=path)
+        if not props:
+            raise ConfigError("PLY vertex element has no properties", source=path,
+                              field="element vertex")
         dtype = np.dtype(props)
-        data = np.frombuffer(stream.read(count * dtype.itemsize), dtype=dtype)
-    if len(data) != count:
-        raise ConfigError(f"PLY file is truncated: {len(data)} of {count} vertices",
-                          source=path)
-    from ..records.pointcloud import POINT_FIELDS
+        number = check_record_count(count, dtype.itemsize, size - stream.tell(), source=path,
+                                    what="vertices", field="element vertex")
+        data = np.frombuffer(stream.read(number * dtype.itemsize), dtype=dtype)
+        if len(data) != number:  # the file shrank while it was read
+            raise ConfigError(f"PLY file is truncated: {len(data)} of {number} vertices",
+                              source=path)
+        from ..records.pointcloud import POINT_FIELDS
 
-    names = list(dtype.names or ())
-    columns = {new: np.array(data[name])
-               for name, new in zip(names, record_names(names, POINT_FIELDS))}
-    return columns, metadata_from_lines(comments, METADATA_PREFIX)
+        names = list(dtype.names or ())
+        columns = {new: np.array(data[name])
+                   for name, new in zip(names, record_names(names, POINT_FIELDS))}
+        try:
+            metadata = metadata_from_lines(comments, METADATA_PREFIX)
+        except ValueError as exc:
+            raise ConfigError(f"the lidarsim-frame comments are not JSON ({exc})",
+                              source=path, field="comment lidarsim-frame") from None
+    return columns, metadata
+
+
+#: Longest PLY header lidarsim reads (its own are a few KB; RPly stops at 1 KB per line).
+MAX_HEADER_BYTES = 1 << 20
+
+
+def _ply_header(stream: IO[bytes], path: Path
+                ) -> tuple[list[str], list[tuple[str, str]], str | None, list[str] | None]:
+    """Comments, vertex properties, the vertex count as written, and the format words of a
+    PLY header, every defect named."""
+    comments: list[str] = []
+    props: list[tuple[str, str]] = []
+    count: str | None = None
+    fmt: list[str] | None = None
+    element = None
+    if stream.readline(64).strip() != b"ply":
+        raise ConfigError("not a PLY file (no 'ply' magic line)", source=path)
+    while True:
+        raw = stream.readline(MAX_HEADER_BYTES)
+        if not raw:
+            raise ConfigError("PLY header has no end_header line", source=path)
+        if stream.tell() > MAX_HEADER_BYTES:
+            raise ConfigError(f"PLY header is longer than {MAX_HEADER_BYTES:,} bytes",
+                              source=path)
+        line = raw.decode("utf-8", errors="replace").rstrip("\r\n")
+        words = line.split()
+        if not words:
+            continue
+        if words[0] == "end_header":
+            return comments, props, count, fmt
+        if words[0] == "comment":
+            comments.append(line[len("comment "):])
+        elif words[0] == "format":
+            fmt = words[1:2]
+        elif words[0] == "element":
+            if len(words) != 3:
+                raise ConfigError(f"PLY line {line[:60]!r} is not 'element NAME COUNT'",
+                                  source=path, field="element")
+            element = words[1]
+            if element == "vertex":
+                if count is not None:
+                    raise ConfigError("PLY header has two vertex elements", source=path,
+                                      field="element vertex")
+                count = words[2]
+                check_record_count(count, 0, 0, source=path, what="vertices",
+                                   field="element vertex")
+            elif words[2] != "0":
+                raise ConfigError(f"PLY element '{element}' is not supported (only a "
+                                  "vertex element)", source=path)
+        elif words[0] == "property" and element == "vertex":
+            if len(words) != 3 or words[1] not in PLY_TYPES:
+                raise ConfigError(f"PLY property '{' '.join(words[1:])}' is not a scalar "
+                                  "of a known type", source=path, field=words[-1])
+            if any(name == words[2] for name, _ in props):
+                raise ConfigError(f"PLY property '{words[2]}' is declared twice",
+                                  source=path, field=words[2])
+            props.append((words[2], PLY_TYPES[words[1]]))
 
 
 @hookimpl

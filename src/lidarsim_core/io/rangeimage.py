@@ -246,11 +246,12 @@ def check_layout(pattern: "ScanPattern", spans: "list[tuple[float, float]] | Non
         _check_span(pattern, *pattern.index_range(t_start, t_end))
 
 
-def range_image_paths(cloud_path: str | Path) -> tuple[Path, Path]:
-    """The two files :func:`save_range_image` writes beside ``cloud_path``."""
+def range_image_files(cloud_path: str | Path) -> list[Path]:
+    """The two files :func:`save_range_image` writes beside ``cloud_path`` (checked with the
+    cloud, as a group, before anything is simulated)."""
     cloud_path = Path(cloud_path)
     base = cloud_path.with_name(cloud_path.stem + ".range")
-    return base.with_name(base.name + ".npz"), base.with_name(base.name + ".png")
+    return [base.with_name(base.name + ".npz"), base.with_name(base.name + ".png")]
 
 
 def save_range_image(cloud: "PointCloud", pattern: "ScanPattern", cloud_path: str | Path, *,

@@ -50,6 +50,9 @@ def _npz(path: Path) -> tuple[dict[str, np.ndarray], dict[str, Any] | None]:
 
 
 def _csv(path: Path) -> tuple[dict[str, np.ndarray], dict[str, Any] | None]:
+    from .columns import check_input
+
+    check_input(path, "CSV file")
     with open(path, encoding="ascii", errors="strict", newline="") as stream:
         try:
             rows = list(csv.reader(stream))
@@ -99,8 +102,11 @@ def read(path: str | Path) -> PointCloud:
     Raises
     ------
     ConfigError
-        If the file is missing, of an unknown suffix, unreadable, has no frame metadata in it
-        or beside it, or lacks point-record columns.
+        If the file is missing, of an unknown suffix, unreadable, not a regular file, larger
+        than the ``data_bytes`` limit, malformed in any way (counts the file cannot hold,
+        truncated records, a column of another shape, length or type, metadata that is not
+        JSON), has no frame metadata in it or beside it, or lacks point-record columns. The
+        message names the file and the defect.
 
     Examples
     --------
@@ -115,11 +121,11 @@ def read(path: str | Path) -> PointCloud:
     if suffix not in _READERS:
         raise ConfigError(f"cannot read suffix '{suffix or '(none)'}'; lidarsim reads "
                           f"{', '.join(READ_SUFFIXES)}", source=path)
-    if path.is_dir():
-        raise ConfigError("is a directory, not a point-cloud file", source=path)
-    if not path.is_file():
-        raise ConfigError("point-cloud file not found", source=path)
-    columns, metadata = _READERS[suffix](path)
+    from .columns import check_input, reader_errors
+
+    check_input(path, "point-cloud file")  # a directory, FIFO, device or missing file, named
+    with reader_errors(path, f"{suffix[1:].upper()} file"):
+        columns, metadata = _READERS[suffix](path)
     if metadata is None:
         if not sidecar_path(path).is_file():
             raise ConfigError("the file holds no lidarsim frame metadata and has no sidecar "

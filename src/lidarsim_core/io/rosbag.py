@@ -32,6 +32,7 @@ The scene and target frame names come from the scenario: ``scene`` and each targ
 
 from __future__ import annotations
 
+import math
 import os
 import secrets
 import shutil
@@ -41,7 +42,7 @@ from typing import TYPE_CHECKING, Any, Callable, Iterable, Sequence
 
 import numpy as np
 
-from ..base.errors import OutputError
+from ..base.errors import ConfigError, OutputError, UserInputError
 from ..base.optional import require
 
 if TYPE_CHECKING:
@@ -244,6 +245,35 @@ def check_target_names(names: Sequence[str]) -> None:
                               "(no spaces or slashes)", field="targets.name")
 
 
+#: ROS 2 ``builtin_interfaces/Time.sec`` is a signed 32-bit integer.
+_ROS_SECONDS = (-2 ** 31, 2 ** 31 - 1)
+
+
+def check_bag_frames(infos: Iterable[Any], *, source: str | Path | None = None) -> None:
+    """Refuse, before anything is simulated, frames a bag cannot hold: a time outside ROS's
+    signed 32-bit seconds (``scan.start_s: 3e9``), or a frame whose one ``PointCloud2``
+    message would exceed the ``bag_frame_points`` limit (a message holds a whole frame in
+    memory, several times over while it is serialised: a bag cannot stream one frame).
+
+    Raises
+    ------
+    ConfigError
+        Naming the scenario field.
+    """
+    from ..base.limits import check
+
+    for info in infos:
+        for seconds in (info.t_start, info.t_end):
+            if not (math.isfinite(seconds) and
+                    _ROS_SECONDS[0] <= math.floor(seconds) <= _ROS_SECONDS[1]):
+                raise ConfigError(f"frame {info.frame} is at t = {seconds:g} s, outside the "
+                                  "seconds a ROS 2 time stamp holds (a signed 32-bit integer, "
+                                  f"±{2 ** 31:,} s)", source=source,
+                                  field="scan.start_s")
+        check("bag_frame_points", info.rays_emitted, source=source, field="scan",
+              what=f"frame {info.frame} of a ROS 2 bag (one message holds the whole frame)")
+
+
 def check_bag_output(path: str | Path, *, overwrite: bool = False) -> Path:
     """Raise :class:`OutputError` unless a bag can be written to ``path`` (the one overwrite
     policy of :mod:`lidarsim_core.base.outputs`); returns it."""
@@ -328,6 +358,14 @@ def write_bag(clouds: Iterable["PointCloud"], path: str | Path, *, target_names:
             raise OutputError(f"the bag writer produced {len(files)} MCAP files, expected 1",
                               source=path)
         os.replace(files[0], path)
+    except Exception as exc:  # ENOSPC inside the bag writer: one line naming the bag
+        cause = exc if isinstance(exc, OSError) else exc.__cause__ or exc.__context__
+        if isinstance(cause, OSError) and not isinstance(exc, UserInputError):
+            from ..base.oserrors import describe_os_error
+
+            raise OutputError(f"cannot write the bag: {describe_os_error(cause)}",
+                              source=path) from exc
+        raise
     finally:
         shutil.rmtree(work, ignore_errors=True)
     return path

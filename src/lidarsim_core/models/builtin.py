@@ -5,12 +5,18 @@ from __future__ import annotations
 from typing import Any, Literal
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, field_validator
 
 from ..base.components import ComponentOptions
 from ..hookspecs import hookimpl
 from ..scene.mesh import Mesh, merge_parts
 from ..scene.targets import TargetModel
+
+
+#: Largest integer ``detail`` of the Envisat model (its
+#: ``lidarsim_core.models.envisat.MAX_TESSELLATION_FACTOR``, kept here so the options are
+#: validated without importing the builder and trimesh).
+ENVISAT_MAX_DETAIL = 32
 
 
 class EnvisatOptions(ComponentOptions):
@@ -19,6 +25,15 @@ class EnvisatOptions(ComponentOptions):
     detail: Literal["coarse", "medium", "fine"] | int = Field(
         "medium", description="'coarse' (hundreds of triangles), 'medium' (thousands), 'fine' "
                               "(~100k), or an integer tessellation factor.")
+
+    @field_validator("detail", mode="before")
+    @classmethod
+    def _detail_in_range(cls, value: Any) -> Any:
+        if isinstance(value, bool) or (isinstance(value, (int, float)) and
+                                       not 0 <= value <= ENVISAT_MAX_DETAIL):
+            raise ValueError(f"detail must be 'coarse', 'medium', 'fine' or an integer "
+                             f"0..{ENVISAT_MAX_DETAIL}, got {value!r}")
+        return value
 
 
 #: Default material of every Envisat part (names of :data:`lidarsim_core.scene.materials.MATERIAL_LIBRARY`

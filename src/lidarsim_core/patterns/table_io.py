@@ -205,12 +205,34 @@ def _check_range(path: Path, values: np.ndarray, lo: float, hi: float, name: str
                                source=path, field=name)
 
 
+def _check_npy_size(path: Path) -> None:
+    """Refuse an NPY file whose header declares more data than the file holds (a shape of
+    2^36 rows in a 1 KB file), before NumPy allocates it."""
+    fmt = np.lib.format
+    with path.open("rb") as stream:
+        version = fmt.read_magic(stream)
+        if version == (1, 0):
+            shape, _, dtype = fmt.read_array_header_1_0(stream)
+        else:
+            shape, _, dtype = fmt.read_array_header_2_0(stream)
+        header = stream.tell()
+    if dtype.hasobject:  # its size says nothing: np.load refuses it below, by name
+        return
+    needed = int(np.prod(shape, dtype=object)) * dtype.itemsize
+    size = path.stat().st_size
+    if needed != size - header:
+        raise PatternFileError(f"the NPY header declares shape {shape} of {dtype} "
+                               f"({needed:,} bytes) but the file holds {size - header:,} "
+                               "bytes of data", source=path)
+
+
 def _from_npy(path: Path) -> PatternTable:
     try:
         with path.open("rb") as stream:
             magic = stream.read(len(np.lib.format.MAGIC_PREFIX))
         if magic != np.lib.format.MAGIC_PREFIX:
             raise PatternFileError("not a .npy file (no NumPy array header)", source=path)
+        _check_npy_size(path)  # the shape its header declares, against the file's length
         # never unpickle: a pattern table is numbers, and a pickle could run code
         arr = np.load(path, allow_pickle=False)
     except OSError as exc:

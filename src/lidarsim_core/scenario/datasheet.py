@@ -17,6 +17,9 @@ from pydantic import (BaseModel, ConfigDict, Field, field_validator, model_seria
 from ..base.config_io import read_config_file
 from ..base.validation import validate_model
 
+#: Widest beam divergence (full angle, degrees) a datasheet or beam block may give.
+MAX_DIVERGENCE_DEG = 90.0
+
 
 class _Strict(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
@@ -125,6 +128,11 @@ class SensorDatasheet(_Strict):
     def _positive_divergence(cls, value: tuple[float, float] | None) -> tuple[float, float] | None:
         if value is not None and (value[0] < 0 or value[1] < 0):
             raise ValueError("beam divergence must be >= 0")
+        if value is not None and (value[0] > MAX_DIVERGENCE_DEG or
+                                  value[1] > MAX_DIVERGENCE_DEG):
+            raise ValueError(f"divergence {list(value)} is wider than {MAX_DIVERGENCE_DEG:g}°: "
+                             "not a laser beam (a flash sensor's illumination is its "
+                             "pattern, not its divergence)")
         return value
 
     @model_validator(mode="after")

@@ -8,7 +8,7 @@ from typing import Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from .datasheet import RangeAtReflectivity
+from .datasheet import MAX_DIVERGENCE_DEG, RangeAtReflectivity
 
 #: How a pulse's returns are reported (docs/realism.md#returns).
 ReturnMode = Literal["first", "last", "strongest", "dual", "multi"]
@@ -34,6 +34,11 @@ class BeamConfig(BaseModel):
     def _non_negative(cls, value: tuple[float, float] | None) -> tuple[float, float] | None:
         if value is not None and (value[0] < 0 or value[1] < 0):
             raise ValueError("divergence must be >= 0")
+        if value is not None and (value[0] > MAX_DIVERGENCE_DEG or
+                                  value[1] > MAX_DIVERGENCE_DEG):
+            raise ValueError(f"divergence {list(value)} is wider than {MAX_DIVERGENCE_DEG:g}°: "
+                             "not a laser beam (a flash sensor's illumination is its "
+                             "pattern, not its divergence)")
         return value
 
 

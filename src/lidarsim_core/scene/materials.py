@@ -54,8 +54,10 @@ class Material(BaseModel):
         5.0, gt=0, lt=60, description="RMS facet tilt of the specular lobe (deg): m = tan of "
                                       "it; small for glass, larger for crinkled MLI.")
     retro_reflectivity: float = Field(
-        0.0, ge=0, description="Apparent reflectivity of a retro-reflector at normal incidence "
-                               "(may be far above 1; 0: none).")
+        0.0, ge=0, le=1e9, description="Apparent reflectivity of a retro-reflector at normal "
+                                       "incidence (may be far above 1, up to 1e9, beyond any "
+                                       "cube-corner array's gain: a larger value would make "
+                                       "float32 intensities overflow; 0: none).")
     retro_acceptance_deg: float = Field(
         30.0, gt=0, le=90, description="Incidence half-angle (deg) at which the "
                                        "retro-reflector's return has fallen to zero.")

@@ -187,12 +187,23 @@ def load_mesh_file(path: str | Path, *, scale: float = 1.0, source: str | None =
     suffix = path.suffix.lower()
     # OBJ: one geometry per 'o' object and 'g' group (trimesh merges them by material else)
     options = {"split_objects": True, "split_groups": True} if suffix == ".obj" else {}
+    from .references import BoundedResolver  # imports trimesh: loaded with it, lazily
+
+    # referenced files (mtllib, textures, glTF URIs) through the same bounded reader
+    resolver = BoundedResolver(path, where)
     try:
         with warnings.catch_warnings(), np.errstate(all="ignore"):
             warnings.simplefilter("ignore")  # overflowing coordinates are refused below
-            loaded = trimesh.load(str(path), process=False, **options)
+            loaded = trimesh.load(str(path), process=False, resolver=resolver, **options)
+    except MeshError:
+        raise
     except Exception as exc:  # trimesh raises many types for garbage input
-        raise MeshError(f"cannot read mesh: {type(exc).__name__}: {exc}", source=where) from None
+        if resolver.refused:
+            raise MeshError(resolver.refused[0], source=where) from None
+        raise MeshError(f"cannot read mesh: {type(exc).__name__}: "
+                        f"{' '.join(str(exc).split())[:200]}", source=where) from None
+    if resolver.refused:  # trimesh loads geometry without a material it could not read
+        raise MeshError(resolver.refused[0], source=where)
     parts: list[tuple[str, np.ndarray, np.ndarray, Any]] = []
     if isinstance(loaded, trimesh.Trimesh) and suffix == ".ply":
         parts = _ply_face_parts(path, loaded)
@@ -295,7 +306,20 @@ def _truncation(path: Path) -> str | None:
     if count > bound:  # refused before trimesh allocates them
         return (f"binary STL announces {count:,} triangles, over the limit of {bound:,.0f} "
                 f"(set {LIMITS['mesh_triangles'].env} to raise it)")
+    from ..base.errors import ConfigError
+    from ..base.limits import check_memory
+
+    try:  # a file that holds them (even a sparse one) may still not fit in memory
+        check_memory(count * LOAD_BYTES_PER_TRIANGLE,
+                     what=f"loading its {count:,} triangles")
+    except ConfigError as exc:
+        return f"binary STL: {exc.message}"
     return None
+
+
+#: Peak memory of loading one triangle of a binary STL (trimesh's arrays, the float64 copies,
+#: the merged mesh), measured at ~520 bytes on a 10⁶-triangle file.
+LOAD_BYTES_PER_TRIANGLE = 520
 
 
 def _colour_material(geom: Any) -> dict[str, Any] | None:
