@@ -116,7 +116,10 @@ def _print_suite(console: Any, suite: dict[str, Any], threads: int) -> None:
     console.print("Targets: lowest sim/bare "
                   f"{_ratio(targets.get('min_simulate_over_bare'))} (goal 0.5); tumbling over "
                   f"static {_ratio(targets.get('tumbling_over_static_rose'))} (rose), "
-                  f"{_ratio(targets.get('tumbling_over_static_risley'))} (Risley) (goal 0.5); "
+                  f"{_ratio(targets.get('tumbling_over_static_risley'))} (Risley), from a "
+                  f"still sensor {_ratio(targets.get('tumbling_fixed_over_static_rose'))} "
+                  f"(rose), {_ratio(targets.get('tumbling_fixed_over_static_risley'))} "
+                  "(Risley) (goal 0.6); "
                   f"Risley over rose {_ratio(targets.get('risley_over_rose_static'))} "
                   "(goal 0.5).")
     data = suite.get("dataset")
