@@ -233,28 +233,53 @@ def cull_posed(directions, sensor_rotation, sensor_position, rotation, position,
 @njit(nogil=True, cache=True)
 def motion_bound(sensor_rotation, sensor_position, rotation, position, reference,
                  reach):  # noqa: ANN001, ANN201
-    """How far any point within ``reach`` of a target's origin strays, in the sensor frame,
-    from where the ``reference`` pose puts it: the largest ``‖Mᵢ − M₀‖_F · reach + |oᵢ − o₀|``
-    over the N poses, with ``Mᵢ = Rsᵢᵀ Rtᵢ`` and ``oᵢ = Rsᵢᵀ (ptᵢ − psᵢ)`` (the Frobenius
-    norm bounds the spectral one). Each array holds N rows or one (shared)."""
+    """A bound on how far any point within ``reach`` of a target's origin strays, in the
+    sensor frame, from where the ``reference`` pose puts it: ``max ‖Mᵢ − M₀‖_F · reach +
+    max |oᵢ − o₀|`` over the N poses, with ``Mᵢ = Rsᵢᵀ Rtᵢ`` and ``oᵢ = Rsᵢᵀ (ptᵢ − psᵢ)``
+    (the Frobenius norm bounds the spectral one). Each array holds N rows or one (shared).
+    With one sensor pose, ``‖Mᵢ − M₀‖_F = ‖Rtᵢ − Rt₀‖_F`` and ``|oᵢ − o₀| = |ptᵢ − pt₀|``
+    (a rotation keeps norms), so only the target's rows are read."""
     n = max(sensor_rotation.shape[0], sensor_position.shape[0], rotation.shape[0],
             position.shape[0])
+    worst_rotation = 0.0
+    worst_shift = 0.0
+    if sensor_rotation.shape[0] == 1 and sensor_position.shape[0] == 1:
+        if rotation.shape[0] > 1:
+            r0 = rotation[reference]
+            for i in range(rotation.shape[0]):
+                frob = 0.0
+                for a in range(3):
+                    for b in range(3):
+                        frob += (rotation[i, a, b] - r0[a, b]) ** 2
+                worst_rotation = max(worst_rotation, frob)
+        if position.shape[0] > 1:
+            p0 = position[reference]
+            for i in range(position.shape[0]):
+                shift = 0.0
+                for a in range(3):
+                    shift += (position[i, a] - p0[a]) ** 2
+                worst_shift = max(worst_shift, shift)
+        return math.sqrt(worst_rotation) * reach + math.sqrt(worst_shift)
     m0 = np.empty((3, 3))
     o0 = np.empty(3)
     m = np.empty((3, 3))
     o = np.empty(3)
-    worst = 0.0
     for i in range(-1, n):
         k = reference if i < 0 else i
-        rs = sensor_rotation[k if sensor_rotation.shape[0] > 1 else 0]
-        rt = rotation[k if rotation.shape[0] > 1 else 0]
-        ps = sensor_position[k if sensor_position.shape[0] > 1 else 0]
-        pt = position[k if position.shape[0] > 1 else 0]
-        dx, dy, dz = pt[0] - ps[0], pt[1] - ps[1], pt[2] - ps[2]
+        s = k if sensor_rotation.shape[0] > 1 else 0
+        t = k if rotation.shape[0] > 1 else 0
+        sp = k if sensor_position.shape[0] > 1 else 0
+        tp = k if position.shape[0] > 1 else 0
+        dx = position[tp, 0] - sensor_position[sp, 0]
+        dy = position[tp, 1] - sensor_position[sp, 1]
+        dz = position[tp, 2] - sensor_position[sp, 2]
         for a in range(3):
-            o[a] = rs[0, a] * dx + rs[1, a] * dy + rs[2, a] * dz
+            o[a] = sensor_rotation[s, 0, a] * dx + sensor_rotation[s, 1, a] * dy + \
+                sensor_rotation[s, 2, a] * dz
             for b in range(3):
-                m[a, b] = rs[0, a] * rt[0, b] + rs[1, a] * rt[1, b] + rs[2, a] * rt[2, b]
+                m[a, b] = sensor_rotation[s, 0, a] * rotation[t, 0, b] + \
+                    sensor_rotation[s, 1, a] * rotation[t, 1, b] + \
+                    sensor_rotation[s, 2, a] * rotation[t, 2, b]
         if i < 0:
             m0[:, :] = m
             o0[:] = o
@@ -265,5 +290,6 @@ def motion_bound(sensor_rotation, sensor_position, rotation, position, reference
             shift += (o[a] - o0[a]) ** 2
             for b in range(3):
                 frob += (m[a, b] - m0[a, b]) ** 2
-        worst = max(worst, math.sqrt(frob) * reach + math.sqrt(shift))
-    return worst
+        worst_rotation = max(worst_rotation, frob)
+        worst_shift = max(worst_shift, shift)
+    return math.sqrt(worst_rotation) * reach + math.sqrt(worst_shift)
