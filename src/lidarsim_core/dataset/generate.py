@@ -29,7 +29,7 @@ from typing import Any, Iterator
 import numpy as np
 import yaml
 
-from ..base.atomic import atomic_output, write_text_atomic
+from ..base.atomic import atomic_output, deferred_sync, sync_files, write_text_atomic
 from ..base.errors import ConfigError, OutputError
 from ..io.points import DEFAULT_SPOOL_MEMORY
 from ..io.sidecar import frame_is_complete
@@ -52,6 +52,7 @@ from .checks import (
     validate_sequences,
 )
 from .config import DatasetPlan, SequencePlan, load_plan, scenario_variant
+from .durable import DurableFrames
 from .executors import run_dask, run_serial
 from .frames import FrameJob
 from .identity import (
@@ -403,23 +404,32 @@ def _run(plan: DatasetPlan, root: Path, sequences: list[SequenceRun], exporter: 
     assignment, split_record = _splits(plan, sequences)
     summaries = [_sequence_summary(root, s, assignment.get(s.plan.name), bag)
                  for s in sequences]
-    write_manifest(root / MANIFEST, identity=identity, sequences=summaries, splits=split_record)
-    for seq in sequences:
-        assert seq.poses is not None
-        seq.poses.save(seq.root / POSES)
-        if not bag:
-            (seq.root / FRAMES_DIR).mkdir(parents=True, exist_ok=True)
-    if plan.multi:
-        _write_text(root / DATASET_COPY, _dataset_copy(plan, root, sequences, exp_id))
-    if split_record is not None:
-        _write_split_lists(root, sequences, assignment, split_record, suffix)
+    # the first manifest, the poses, the copies and the splits are written atomically and
+    # made durable together, before any frame (one sync instead of one per file)
+    with deferred_sync([]) as written:
+        write_manifest(root / MANIFEST, identity=identity, sequences=summaries,
+                       splits=split_record)
+        for seq in sequences:
+            assert seq.poses is not None
+            seq.poses.save(seq.root / POSES)
+            if not bag:
+                (seq.root / FRAMES_DIR).mkdir(parents=True, exist_ok=True)
+        if plan.multi:
+            _write_text(root / DATASET_COPY, _dataset_copy(plan, root, sequences, exp_id))
+        if split_record is not None:
+            _write_split_lists(root, sequences, assignment, split_record, suffix)
+    sync_files(written)
     if bag:
         return _run_bags(root, sequences, exporter, identity, summaries, split_record,
                          display=display, verify=verify)
 
-    done = {s.plan.name: np.array([frame_is_complete(s.root / frame_relpath(f, suffix),
-                                                     verify=verify) is not None
-                                   for f in range(s.frames)], dtype=bool) for s in sequences}
+    # a frame written since the last synced block of an interrupted run is checked against
+    # its checksum too: after a crash it may be on disk empty or in part (dataset/durable.py)
+    durable = DurableFrames.read(root, manifest)
+    done = {s.plan.name: np.array([frame_is_complete(
+        s.root / frame_relpath(f, suffix),
+        verify=verify or (s.plan.name, f) not in durable) is not None
+        for f in range(s.frames)], dtype=bool) for s in sequences}
     total = sum(s.frames for s in sequences)
     skipped = int(sum(int(m.sum()) for m in done.values()))
 
@@ -436,7 +446,7 @@ def _run(plan: DatasetPlan, root: Path, sequences: list[SequenceRun], exporter: 
         with FrameProgress(total - skipped, display=display, already=skipped) as progress:
             on_result = lambda result: progress.frame_done(result["points"])  # noqa: E731
             if workers is None and scheduler is None:
-                run_serial(jobs(), on_result)
+                run_serial(jobs(), on_result, on_durable=durable.add)
             else:
                 run_dask(jobs(), on_result, workers=workers, scheduler=scheduler)
     except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM: say what is kept, and how to go on
@@ -446,6 +456,7 @@ def _run(plan: DatasetPlan, root: Path, sequences: list[SequenceRun], exporter: 
                         f"{root} (no partial frame file); rerun the same command to resume"
                         ) from None
     _finish(root, sequences, identity, summaries, split_record, suffix)
+    durable.remove()
     return DatasetResult(root, total, progress.written, skipped, progress.points,
                          progress.elapsed)
 
