@@ -30,6 +30,7 @@ import numpy as np
 
 from ..base.threads import worker_threads
 from ..pipeline.cast import process_piece, pulse_frames
+from .startup import bench_startup
 from .timing import bare_embree_probe, interleaved_best, threads_env, with_threads
 
 #: Envisat's LVLH tumbling in 2013 (2.67 °/s about the orbit anti-normal), as in
@@ -317,8 +318,9 @@ def suite_targets(scenes: dict[str, dict[str, Any]]) -> dict[str, Any]:
 
 
 def run_suite(*, quick: bool = False, scenes: list[str] | None = None) -> dict[str, Any]:
-    """Every scene of :data:`SUITE` (or ``scenes``) and the dataset throughput:
-    ``{"scenes": {NAME: {...}}, "targets": {...}, "dataset": {...}}``. ``quick``: 0.1 s scans
+    """Every scene of :data:`SUITE` (or ``scenes``), the dataset throughput and a new
+    process's start (:func:`lidarsim_core.bench.startup.bench_startup`):
+    ``{"scenes": {NAME: {...}}, "targets": {...}, "dataset": {...}, "startup": {...}}``. ``quick``: 0.1 s scans
     and two rounds, no 1M-triangle mesh, a 20-frame dataset."""
     names = scenes or [n for n in SUITE if not (quick and n == "mesh-1m")]
     duration, rounds = (0.1, 2) if quick else (1.0, 5)
@@ -326,7 +328,8 @@ def run_suite(*, quick: bool = False, scenes: list[str] | None = None) -> dict[s
                for name in names}
     return {"duration_s": duration, "rounds": rounds, "scenes": results,
             "targets": suite_targets(results),
-            "dataset": bench_dataset(frames=20 if quick else 200, rounds=2 if quick else 3)}
+            "dataset": bench_dataset(frames=20 if quick else 200, rounds=2 if quick else 3),
+            "startup": bench_startup(rounds=1 if quick else 3)}
 
 
 def bench_dataset(*, frames: int = 200, rounds: int = 3) -> dict[str, Any]:

@@ -128,3 +128,8 @@ def _print_suite(console: Any, suite: dict[str, Any], threads: int) -> None:
                       f"{data['in_memory_frames_per_s']:.1f} frames/s, serial lidarsim "
                       f"dataset {data['dataset_frames_per_s']:.1f} frames/s (ratio "
                       f"{data['dataset_over_in_memory']:.2f}, goal 0.8).")
+    start = suite.get("startup")
+    if start:
+        console.print(f"A new process, from import to the demo's first frame: "
+                      f"{start['import_to_first_frame_s']:.2f} s "
+                      f"({start['import_to_first_frame_cpu_s']:.2f} s of CPU; goal 1 s).")
