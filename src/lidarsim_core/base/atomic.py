@@ -104,19 +104,23 @@ def deferred_sync(paths: list[Path]) -> Iterator[list[Path]]:
 
 def sync_files(paths: list[Path]) -> None:
     """Make ``paths`` and their directory entries durable: on Linux one ``syncfs`` per file
-    system they are on; elsewhere (or if ``syncfs`` fails) an ``fsync`` of each file and of
-    each directory."""
+    system they are on; elsewhere (or if ``syncfs`` fails, which is how a write error of
+    the file system shows) an ``fsync`` of each file, whose error names the file
+    (:class:`OutputError`), and of each directory."""
     if not paths:
         return
     directories = sorted({str(Path(p).parent) for p in paths})
     if sys.platform.startswith("linux") and _syncfs(directories):
         return
     for path in paths:
-        fd = os.open(path, os.O_RDONLY)
         try:
-            os.fsync(fd)
-        finally:
-            os.close(fd)
+            fd = os.open(path, os.O_RDONLY)
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+        except OSError as exc:  # ENOSPC, EIO... surfacing at the sync: name the file
+            raise OutputError(f"cannot write: {describe_os_error(exc)}", source=path) from exc
     for directory in directories:
         try:
             fd = os.open(directory, os.O_RDONLY)

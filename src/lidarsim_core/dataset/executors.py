@@ -44,11 +44,16 @@ def run_serial(jobs: Iterable[FrameJob], on_result: OnResult, *,
     it (and without ``overlap``) every file is synced before its rename.
     """
     if not overlap:
+        synced: list[dict[str, Any]] = []
         for job in jobs:
             result = run_frame_job(job)  # synced before its rename
             on_result(result)
-            if on_durable is not None:
-                on_durable([result])
+            synced.append(result)
+            if on_durable is not None and len(synced) >= SYNC_BLOCK:
+                on_durable(synced)
+                synced = []
+        if on_durable is not None:
+            on_durable(synced)
         return
     writer = _FrameWriter(on_durable)
     try:
