@@ -251,15 +251,16 @@ def test_tumbling_target_near_a_still_sensor_uses_cube_maps(monkeypatch):
 
 def test_fast_targets_get_a_cube_map_per_block(monkeypatch):
     """The debris box of the two-target scene moves by more than a tenth of its size within
-    a piece: the piece is halved into blocks with maps of their own, and nothing changes."""
+    a piece: the piece is halved (at most twice) into blocks with maps of their own where the
+    motion allows, and nothing changes."""
     from lidarsim_core.pipeline import cull
 
     sim = Simulation(_suite("two-targets", 0.3))
     blocks = []
     original = PulseCuller._moving_blocks
 
-    def spy(self, posed, trees, start, stop):
-        result = original(self, posed, trees, start, stop)
+    def spy(self, posed, trees, start, stop, splits=0):
+        result = original(self, posed, trees, start, stop, splits)
         if start == 0 and stop == max(len(posed.sensor), *(len(p) for p in posed.targets)):
             blocks.append(result)
         return result
@@ -268,8 +269,8 @@ def test_fast_targets_get_a_cube_map_per_block(monkeypatch):
     monkeypatch.setenv("LIDARSIM_THREADS", "1")
     culled = sim.run_frame(0, chunk_rays=1_000_000)
     assert blocks and max(len(b) for b in blocks) > 1
-    assert all(grid is not None for b in blocks for _, stop, grid in b) or \
-        min(stop - start for b in blocks for start, stop, _ in b) < 2 * cull.MIN_MOVING_BLOCK
+    assert max(len(b) for b in blocks) <= 2 ** cull.MAX_MOVING_SPLITS
+    assert any(grid is not None for b in blocks for _, _, grid in b)
     sim.culler = None
     every_pulse = sim.run_frame(0, chunk_rays=1_000_000)
     for name, column in every_pulse.columns.items():

@@ -62,6 +62,9 @@ MIN_BOX_TRIANGLES = 8
 #: Fewest pulses of a block with a cube map of its own when targets move fast (below it, the
 #: pulses are tested one by one at their own poses).
 MIN_MOVING_BLOCK = 1024
+#: Times a piece is halved at most for targets that move fast (up to 4 blocks): beyond that,
+#: building a map per block cost more than testing each pulse on the two-target scene.
+MAX_MOVING_SPLITS = 2
 
 
 @dataclass(frozen=True)
@@ -160,15 +163,17 @@ class PulseCuller:
             roots, self.margin_rad)
 
     def _moving_blocks(self, posed: PiecePoses, trees: list[tuple[np.ndarray, ...]],
-                       start: int, stop: int) -> list[tuple[int, int, np.ndarray | None]]:
+                       start: int, stop: int, splits: int = 0
+                       ) -> list[tuple[int, int, np.ndarray | None]]:
         """``(start, stop, grid)`` for consecutive blocks of the pulses ``start:stop``: the
         cube map of each block (:meth:`_moving_grid`), or None where the pulses are to be
         tested one by one."""
         grid, too_fast = self._moving_grid(posed, trees, start, stop)
-        if grid is None and too_fast and stop - start >= 2 * MIN_MOVING_BLOCK:
+        if grid is None and too_fast and stop - start >= 2 * MIN_MOVING_BLOCK and \
+                splits < MAX_MOVING_SPLITS:
             middle = (start + stop) // 2
-            return self._moving_blocks(posed, trees, start, middle) + \
-                self._moving_blocks(posed, trees, middle, stop)
+            return self._moving_blocks(posed, trees, start, middle, splits + 1) + \
+                self._moving_blocks(posed, trees, middle, stop, splits + 1)
         return [(start, stop, grid)]
 
     def _pose_grid(self, posed: PiecePoses, k: int, motion: list[float],
