@@ -14,6 +14,7 @@ import pytest
 
 import lidarsim_core.dataset.executors as executors
 from lidarsim_core.base import atomic
+from lidarsim_core.dataset import generate
 from lidarsim_core.dataset.durable import DURABLE
 from lidarsim_core.dataset.generate import generate_dataset
 from lidarsim_core.scenario import demo_scenario, scenario_from_dict
@@ -45,47 +46,32 @@ def test_a_crash_before_a_block_is_synced_is_repaired_on_resume(tmp_path, monkey
                                        real_sync(paths)))
     fsyncs: list[str] = []
     real_fsync = atomic.os.fsync
-    simulate = executors.simulate_frame_job
 
-    def stop_at_6(job):
-        if job.frame == 6:
-            raise KeyboardInterrupt
-        return simulate(job)
+    def crash(*args, **kwargs):  # the machine stops before the final manifest
+        raise KeyboardInterrupt
 
-    monkeypatch.setattr(executors, "simulate_frame_job", stop_at_6)
+    monkeypatch.setattr(generate, "_finish", crash)
     out = tmp_path / "crashed"
     with monkeypatch.context() as m:
         m.setattr(atomic.os, "fsync", lambda fd: (
             fsyncs.append(Path(os.readlink(f"/proc/self/fd/{fd}")).name), real_fsync(fd)))
         with pytest.raises(KeyboardInterrupt):
             generate_dataset(scenario, out)
-    # frames are renamed into place without an fsync each; the blocks synced are recorded
-    frames = sorted(p.name for p in (out / "frames").glob("frame_*.ply"))
-    assert len(frames) >= 2
-    assert synced and synced[0] == ["frame_000000.ply", "frame_000000.ply.json",
-                                    "frame_000001.ply", "frame_000001.ply.json"]
-    assert all(len(block) == 4 for block in synced)  # blocks of two frames, two files each
-    # no frame file is synced on its own; the record of durable frames is, once a block
+    # frames are renamed into place without an fsync each and synced two at a time, in order
+    assert synced == [[f"frame_{f:06d}.ply{x}" for f in (k, k + 1) for x in ("", ".json")]
+                      for k in range(0, 8, 2)]
     assert not [n for n in fsyncs if "frame_" in n]
-    assert len([n for n in fsyncs if DURABLE in n]) == len(synced)
+    assert len([n for n in fsyncs if DURABLE in n]) == len(synced)  # the record, once a block
     record = json.loads((out / DURABLE).read_text())
     (name, ranges), = record["sequences"].items()
-    durable = {f for a, b in ranges for f in range(a, b)}
-    assert durable == {int(n[6:12]) for block in synced for n in block}
-    assert 6 not in durable
+    assert ranges == [[0, 8]]
 
-    # what a crash can leave of a frame whose block was not synced: its sidecar, and a file
-    # of the right size holding zeros
-    victim = next(f for f in range(8)
-                  if f not in durable and (out / "frames" / f"frame_{f:06d}.ply").exists()) \
-        if len(frames) > len(durable) else None
-    if victim is None:  # every written frame was synced: drop one from the record instead
-        victim = max(durable)
-        durable.discard(victim)
-        (out / DURABLE).write_text(json.dumps({"sequences": {
-            name: [[f, f + 1] for f in sorted(durable)]}}))
-    path = out / "frames" / f"frame_{victim:06d}.ply"
+    # the last block was not synced when the machine stopped: its frames are not in the
+    # record, and one of them is what a crash can leave, a file of the right size of zeros
+    (out / DURABLE).write_text(json.dumps({"sequences": {name: [[0, 6]]}}))
+    path = out / "frames" / "frame_000007.ply"
     path.write_bytes(bytes(path.stat().st_size))
-    monkeypatch.setattr(executors, "simulate_frame_job", simulate)
+    monkeypatch.undo()
     generate_dataset(scenario, out)
     assert _files(out) == reference
+    assert not (out / DURABLE).exists()

@@ -442,9 +442,13 @@ def _run(plan: DatasetPlan, root: Path, sequences: list[SequenceRun], exporter: 
                                str(seq.copy_path), exporter.name,
                                exporter.options.model_dump(mode="json"), spool_memory)
 
+    written: dict[tuple[str, int], dict[str, Any]] = {}  # this run's frames, for the manifest
     try:
         with FrameProgress(total - skipped, display=display, already=skipped) as progress:
-            on_result = lambda result: progress.frame_done(result["points"])  # noqa: E731
+            def on_result(result: dict[str, Any]) -> None:
+                written[(result["sequence"], result["frame"])] = result
+                progress.frame_done(result["points"])
+
             if workers is None and scheduler is None:
                 run_serial(jobs(), on_result, on_durable=durable.add)
             else:
@@ -455,7 +459,7 @@ def _run(plan: DatasetPlan, root: Path, sequences: list[SequenceRun], exporter: 
         raise type(exc)(f"{kept} of {total} frames are complete and kept in "
                         f"{root} (no partial frame file); rerun the same command to resume"
                         ) from None
-    _finish(root, sequences, identity, summaries, split_record, suffix)
+    _finish(root, sequences, identity, summaries, split_record, suffix, written)
     durable.remove()
     return DatasetResult(root, total, progress.written, skipped, progress.points,
                          progress.elapsed)
@@ -477,6 +481,7 @@ def _run_bags(root: Path, sequences: list[SequenceRun], exporter: BagFormat,
     done = [_bag_record(seq, verify) is not None for seq in sequences]
     total = sum(s.frames for s in sequences)
     skipped = sum(s.frames for s, d in zip(sequences, done) if d)
+    written: dict[tuple[str, int], dict[str, Any]] = {}  # this run's frames, for the manifest
     try:
         with FrameProgress(total - skipped, display=display, already=skipped) as progress:
             for seq, finished in zip(sequences, done):
@@ -514,15 +519,19 @@ def _run_bags(root: Path, sequences: list[SequenceRun], exporter: BagFormat,
 
 
 def _finish(root: Path, sequences: list[SequenceRun], identity: dict[str, Any],
-            summaries: list[dict[str, Any]], splits: dict[str, Any] | None, suffix: str) -> None:
+            summaries: list[dict[str, Any]], splits: dict[str, Any] | None, suffix: str,
+            written: dict[tuple[str, int], dict[str, Any]] | None = None) -> None:
+    """Write the final manifest: the frames this run wrote from their results (``written``,
+    the values of their sidecars), the others from their sidecars on disk."""
     totals = {"frames": 0, "points": 0, "bytes": 0}
+    written = written or {}
 
     def frames_of(index: int) -> Iterator[dict[str, Any]]:
         seq = sequences[index]
         rel = seq.root.relative_to(root).as_posix()
         for frame in range(seq.frames):
             path = seq.root / frame_relpath(frame, suffix)
-            record = frame_is_complete(path)
+            record = written.get((seq.plan.name, frame)) or frame_is_complete(path)
             if record is None:
                 raise OutputError("frame file or sidecar missing after the run", source=path)
             totals["frames"] += 1
