@@ -80,7 +80,8 @@ SUITE = {"duration_s": 0.1, "rounds": 2, "scenes": {"tumbling-risley": {
     "targets": {"min_simulate_over_bare": 0.1, "tumbling_over_static_rose": None,
                 "tumbling_over_static_risley": 0.7, "risley_over_rose_static": None},
     "dataset": {"frames": 20, "in_memory_frames_per_s": 50.0, "dataset_frames_per_s": 45.0,
-                "dataset_over_in_memory": 0.9}}
+                "dataset_over_in_memory": 0.9},
+    "startup": {"import_to_first_frame_s": 0.8, "import_to_first_frame_cpu_s": 0.7}}
 
 
 @pytest.mark.parametrize("as_json", [True, False])
@@ -98,7 +99,7 @@ def test_cli_prints_the_benchmark(monkeypatch, as_json, with_suite):
         assert "envisat" in result.output and "1.50M" in result.output
         if with_suite:
             for text in ("tumbling-risley", "2.00M", "0.12", "poses 30", "0.70 (Risley)",
-                         "45.0 frames/s"):
+                         "45.0 frames/s", "first frame: 0.80 s"):
                 assert text in result.output, text
 
 
@@ -159,3 +160,13 @@ def test_suite_targets_and_dataset_throughput():
     assert data["in_memory_frames_per_s"] > 0 and data["dataset_frames_per_s"] > 0
     assert math.isclose(data["dataset_over_in_memory"],
                         data["dataset_frames_per_s"] / data["in_memory_frames_per_s"])
+
+
+def test_startup_is_measured_in_a_new_process_that_compiles_nothing():
+    pytest.importorskip("numba")
+    from lidarsim_core.bench.startup import bench_startup
+
+    start = bench_startup(rounds=1)
+    assert start["kernels_compiled"] == []  # the kernels came from the disk cache
+    assert 0 < start["first_frame_s"] < start["import_to_first_frame_s"]
+    assert 0 < start["import_to_first_frame_cpu_s"]

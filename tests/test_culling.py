@@ -204,9 +204,9 @@ def test_moving_grid_is_used_and_its_motion_growth_is_needed(monkeypatch):
     original = PulseCuller._moving_grid
 
     def spy(self, *args):
-        grid = original(self, *args)
+        grid, too_fast = original(self, *args)
         used.append(grid is not None)
-        return grid
+        return grid, too_fast
 
     monkeypatch.setattr(PulseCuller, "_moving_grid", spy)
     monkeypatch.setenv("LIDARSIM_THREADS", "1")
@@ -223,3 +223,97 @@ def test_moving_grid_is_used_and_its_motion_growth_is_needed(monkeypatch):
     sim.culler = culler
     culler._grids.clear()
     assert len(sim.run_frame(0, chunk_rays=1_000_000)) < len(every_pulse)
+
+
+def test_tumbling_target_near_a_still_sensor_uses_cube_maps(monkeypatch):
+    """Envisat tumbling 31 m ahead of a still sensor, 15 s in, when its bounding box is nearer
+    than its own size: every piece is culled by cube maps (none pulse by pulse), and the
+    points are those of casting every pulse."""
+    from lidarsim_core.bench.suite import SUITE
+
+    sim = Simulation(scenario_from_dict(SUITE["tumbling-fixed-rose"][1](0.2)))
+    per_pulse = []
+    original = PulseCuller._per_pulse
+
+    def spy(self, *args):
+        per_pulse.append(True)
+        return original(self, *args)
+
+    monkeypatch.setattr(PulseCuller, "_per_pulse", spy)
+    culled = sim.run_frame(0)
+    assert not per_pulse
+    sim.culler = None
+    every_pulse = sim.run_frame(0)
+    assert len(every_pulse) > 1000
+    for name, column in every_pulse.columns.items():
+        np.testing.assert_array_equal(culled[name], column, err_msg=name)
+
+
+def test_fast_targets_get_a_cube_map_per_block(monkeypatch):
+    """The debris box of the two-target scene moves by more than a tenth of its size within
+    a piece: the piece is halved (at most twice) into blocks with maps of their own where the
+    motion allows, and nothing changes."""
+    from lidarsim_core.pipeline import cull
+
+    sim = Simulation(_suite("two-targets", 0.3))
+    blocks = []
+    original = PulseCuller._moving_blocks
+
+    def spy(self, posed, trees, start, stop, splits=0):
+        result = original(self, posed, trees, start, stop, splits)
+        if start == 0 and stop == max(len(posed.sensor), *(len(p) for p in posed.targets)):
+            blocks.append(result)
+        return result
+
+    monkeypatch.setattr(PulseCuller, "_moving_blocks", spy)
+    monkeypatch.setenv("LIDARSIM_THREADS", "1")
+    culled = sim.run_frame(0, chunk_rays=1_000_000)
+    assert blocks and max(len(b) for b in blocks) > 1
+    assert max(len(b) for b in blocks) <= 2 ** cull.MAX_MOVING_SPLITS
+    assert any(grid is not None for b in blocks for _, _, grid in b)
+    sim.culler = None
+    every_pulse = sim.run_frame(0, chunk_rays=1_000_000)
+    for name, column in every_pulse.columns.items():
+        np.testing.assert_array_equal(culled[name], column, err_msg=name)
+
+
+def test_direction_grid_holds_every_direction_that_meets_a_box():
+    """Random boxes beside, across, behind and around the sensor (some straddling the cube
+    map's face planes, some a few cm away): every direction whose ray meets a box, found by
+    an exact slab test, lies in a set cell; and far boxes leave most cells clear."""
+    from scipy.spatial.transform import Rotation
+
+    from lidarsim_core.kernels.cull import cull_by_grid, direction_grid
+    from lidarsim_core.pipeline.cull import _CORNERS
+
+    rng = np.random.default_rng(7)
+    directions = rng.normal(size=(200_000, 3))
+    directions /= np.linalg.norm(directions, axis=1)[:, None]
+    checked = 0
+    for _ in range(40):
+        half = rng.uniform(0.05, 3.0, 3)
+        centre = rng.normal(size=3) * rng.uniform(0.5, 12.0)
+        rotation = Rotation.from_euler("xyz", rng.uniform(0, 2 * np.pi, 3)).as_matrix()
+        if np.all(np.abs(centre @ rotation) < half + 0.02):
+            continue  # the sensor inside (or touching) the box: None, tested below
+        body = np.where(_CORNERS, half, -half)
+        corners = body @ rotation.T + centre
+        grid = direction_grid(corners[None], 256)
+        assert grid is not None
+        # exact slab test in the box's frame: origin -centre, direction R^T d
+        o = -centre @ rotation
+        d = directions @ rotation
+        with np.errstate(divide="ignore", invalid="ignore"):
+            a, b = (-half - o) / d, (half - o) / d
+        near = np.nanmax(np.minimum(a, b), axis=1).clip(0)
+        far = np.nanmin(np.maximum(a, b), axis=1)
+        meets = near <= far
+        kept = np.zeros(len(directions), bool)
+        kept[cull_by_grid(directions, grid)] = True
+        assert not (meets & ~kept).any()
+        checked += int(meets.sum())
+        if np.linalg.norm(centre) > 4 * np.linalg.norm(half):  # a far box: a small map
+            assert kept.mean() < 0.5
+    assert checked > 1000
+    inside = np.where(_CORNERS, 1.0, -1.0)[None] + np.array([0.3, 0, 0])
+    assert direction_grid(inside, 64) is None

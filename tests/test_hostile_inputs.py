@@ -283,6 +283,8 @@ def test_dataset_write_error_on_a_first_run_leaves_no_directory(tmp_path, capsys
         real(fd)
 
     monkeypatch.setattr(os, "fsync", fsync)
+    # files a dataset run syncs together: a failing syncfs falls back to an fsync of each
+    monkeypatch.setattr("lidarsim_core.base.atomic._syncfs", lambda directories: False)
     refused(["dataset", path, "--out", "ds", "-q"], capsys, "no space left on the device")
     assert _entries(tmp_path) == {"scene.yaml"}
 

@@ -5,6 +5,8 @@ from __future__ import annotations
 
 import os
 import secrets
+import sys
+import threading
 from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Iterator
@@ -17,6 +19,8 @@ from .oserrors import describe_os_error
 def atomic_output(path: str | Path, *, overwrite: bool = True) -> Iterator[IO[bytes]]:
     """Open a temporary file beside ``path``; rename it onto ``path`` only on success.
 
+    The file's data reach the disk (``fsync``) before the rename, unless the calling thread
+    is inside :func:`deferred_sync`, which collects the path for a later :func:`sync_files`.
     The temporary file is hidden (``.NAME.RANDOM.part``) and never the target. It is removed
     whatever stops the body: an exception, Ctrl-C, or SIGTERM under the CLI (its name is
     chosen before the file is created, so even an interrupt arriving while it is being
@@ -48,11 +52,15 @@ def atomic_output(path: str | Path, *, overwrite: bool = True) -> Iterator[IO[by
         except OSError as exc:
             tmp = None
             raise OutputError(f"cannot write here: {exc.strerror}", source=path) from None
+        deferred = getattr(_local, "deferred", None)
         with os.fdopen(fd, "wb") as stream:
             yield stream
             stream.flush()
-            os.fsync(stream.fileno())
+            if deferred is None:
+                os.fsync(stream.fileno())
         os.replace(tmp, path)
+        if deferred is not None:
+            deferred.append(path)
     except BaseException as exc:
         if tmp is not None:
             try:
@@ -135,3 +143,81 @@ def _group_member(path: Path, tmp: Path, overwrite: bool, temps: list[tuple[Path
     temps.append((Path(path), tmp))
     with os.fdopen(fd, "wb") as stream:
         yield stream
+
+
+_local = threading.local()
+
+
+@contextmanager
+def deferred_sync(paths: list[Path]) -> Iterator[list[Path]]:
+    """Files that :func:`atomic_output` finishes on this thread inside the block are renamed
+    into place without their ``fsync``; their paths are appended to ``paths``, to be made
+    durable together by :func:`sync_files`.
+
+    They are whole for every other process the moment they appear (the rename is atomic);
+    only an operating-system crash or power loss before the :func:`sync_files` can lose or
+    empty them, which a reader that checks sizes and checksums (a resumed ``lidarsim
+    dataset``) notices.
+    """
+    before = getattr(_local, "deferred", None)
+    _local.deferred = paths
+    try:
+        yield paths
+    finally:
+        _local.deferred = before
+
+
+def sync_files(paths: list[Path]) -> None:
+    """Make ``paths`` and their directory entries durable: on Linux one ``syncfs`` per file
+    system they are on; elsewhere (or if ``syncfs`` fails, which is how a write error of
+    the file system shows) an ``fsync`` of each file, whose error names the file
+    (:class:`OutputError`), and of each directory."""
+    if not paths:
+        return
+    directories = sorted({str(Path(p).parent) for p in paths})
+    if sys.platform.startswith("linux") and _syncfs(directories):
+        return
+    for path in paths:
+        try:
+            fd = os.open(path, os.O_RDONLY)
+            try:
+                os.fsync(fd)
+            finally:
+                os.close(fd)
+        except OSError as exc:  # ENOSPC, EIO... surfacing at the sync: name the file
+            raise OutputError(f"cannot write: {describe_os_error(exc)}", source=path) from exc
+    for directory in directories:
+        try:
+            fd = os.open(directory, os.O_RDONLY)
+        except OSError:  # a platform without directory handles (Windows)
+            continue
+        try:
+            os.fsync(fd)
+        except OSError:
+            pass
+        finally:
+            os.close(fd)
+
+
+def _syncfs(directories: list[str]) -> bool:
+    """``syncfs`` once per file system holding ``directories``; False if it is unavailable
+    or fails (the caller then syncs file by file)."""
+    import ctypes
+
+    try:
+        call = ctypes.CDLL(None, use_errno=True).syncfs  # releases the GIL while it runs
+    except (OSError, AttributeError):
+        return False
+    done: set[int] = set()
+    for directory in directories:
+        fd = os.open(directory, os.O_RDONLY)
+        try:
+            device = os.fstat(fd).st_dev
+            if device in done:
+                continue
+            if call(fd) != 0:
+                return False
+            done.add(device)
+        finally:
+            os.close(fd)
+    return True

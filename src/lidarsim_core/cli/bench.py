@@ -116,7 +116,10 @@ def _print_suite(console: Any, suite: dict[str, Any], threads: int) -> None:
     console.print("Targets: lowest sim/bare "
                   f"{_ratio(targets.get('min_simulate_over_bare'))} (goal 0.5); tumbling over "
                   f"static {_ratio(targets.get('tumbling_over_static_rose'))} (rose), "
-                  f"{_ratio(targets.get('tumbling_over_static_risley'))} (Risley) (goal 0.5); "
+                  f"{_ratio(targets.get('tumbling_over_static_risley'))} (Risley), from a "
+                  f"still sensor {_ratio(targets.get('tumbling_fixed_over_static_rose'))} "
+                  f"(rose), {_ratio(targets.get('tumbling_fixed_over_static_risley'))} "
+                  "(Risley) (goal 0.6); "
                   f"Risley over rose {_ratio(targets.get('risley_over_rose_static'))} "
                   "(goal 0.5).")
     data = suite.get("dataset")
@@ -125,3 +128,8 @@ def _print_suite(console: Any, suite: dict[str, Any], threads: int) -> None:
                       f"{data['in_memory_frames_per_s']:.1f} frames/s, serial lidarsim "
                       f"dataset {data['dataset_frames_per_s']:.1f} frames/s (ratio "
                       f"{data['dataset_over_in_memory']:.2f}, goal 0.8).")
+    start = suite.get("startup")
+    if start:
+        console.print(f"A new process, from import to the demo's first frame: "
+                      f"{start['import_to_first_frame_s']:.2f} s "
+                      f"({start['import_to_first_frame_cpu_s']:.2f} s of CPU; goal 1 s).")

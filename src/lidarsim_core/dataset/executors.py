@@ -14,18 +14,20 @@ import threading
 from contextlib import ExitStack, contextmanager
 from typing import Any, Callable, Iterable, Iterator
 
+from ..base.atomic import deferred_sync, sync_files
 from ..base.errors import ConfigError
 from ..base.optional import require
 from .frames import FrameJob, run_frame_job, simulate_frame_job, write_frame_job
 
 OnResult = Callable[[dict[str, Any]], None]
+OnDurable = Callable[[list[dict[str, Any]]], None]
 
 #: Jobs in flight per worker thread on Dask (keeps every worker busy between results).
 IN_FLIGHT_PER_THREAD = 2
 
 
 def run_serial(jobs: Iterable[FrameJob], on_result: OnResult, *,
-               overlap: bool = True) -> None:
+               overlap: bool = True, on_durable: OnDurable | None = None) -> None:
     """Run the jobs one after another in this process.
 
     With ``overlap`` (the default) a writer thread writes each frame's file, checksum and
@@ -34,12 +36,26 @@ def run_serial(jobs: Iterable[FrameJob], on_result: OnResult, *,
     same code writes them, each atomically), ``on_result`` is called on this thread in frame
     order, and an error or interrupt on either side stops both: the frame being written is
     finished or left as a ``.part`` file, which the next run removes.
+
+    With ``on_durable`` too, the frames' files are renamed into place without an ``fsync``
+    each: a syncing thread makes every block of :data:`SYNC_BLOCK` written frames durable at
+    once (:func:`~lidarsim_core.base.atomic.sync_files`) and then passes their results to
+    ``on_durable`` (from that thread); the last block is synced before this returns. Without
+    it (and without ``overlap``) every file is synced before its rename.
     """
     if not overlap:
+        synced: list[dict[str, Any]] = []
         for job in jobs:
-            on_result(run_frame_job(job))
+            result = run_frame_job(job)  # synced before its rename
+            on_result(result)
+            synced.append(result)
+            if on_durable is not None and len(synced) >= SYNC_BLOCK:
+                on_durable(synced)
+                synced = []
+        if on_durable is not None:
+            on_durable(synced)
         return
-    writer = _FrameWriter()
+    writer = _FrameWriter(on_durable)
     try:
         for job in jobs:
             spool, info = simulate_frame_job(job)
@@ -49,6 +65,7 @@ def run_serial(jobs: Iterable[FrameJob], on_result: OnResult, *,
         writer.finish()
         for result in writer.results():
             on_result(result)
+        writer.finish_sync()
     finally:
         writer.abandon()
 
@@ -58,12 +75,21 @@ WRITE_QUEUE = 2
 #: Writer threads: a frame's write spends most of its time in ``fsync``, which releases the
 #: GIL, so two writers keep up with a simulation that is faster than one write.
 WRITERS = 2
+#: Frames made durable together by :func:`run_serial`'s syncing thread (with ``on_durable``).
+SYNC_BLOCK = 64
+#: Blocks of written frames waiting for the syncing thread.
+SYNC_QUEUE = 2
 
 
 class _FrameWriter:
     """The writer threads of :func:`run_serial`; results come back in submission order."""
 
-    def __init__(self) -> None:
+    def __init__(self, on_durable: OnDurable | None = None) -> None:
+        self._on_durable = on_durable
+        self._block: tuple[list[dict[str, Any]], list[Any]] = ([], [])
+        self._sync_queue: queue.Queue[Any] = queue.Queue(maxsize=SYNC_QUEUE)
+        self._syncer = threading.Thread(target=self._sync_run, name="lidarsim-syncer",
+                                        daemon=True)
         self._queue: queue.Queue[Any] = queue.Queue(maxsize=WRITE_QUEUE)
         self._lock = threading.Lock()
         self._finished: dict[int, dict[str, Any]] = {}
@@ -75,6 +101,24 @@ class _FrameWriter:
                                           daemon=True) for i in range(WRITERS)]
         for thread in self._threads:
             thread.start()
+        if on_durable is not None:
+            self._syncer.start()
+
+    def _sync_run(self) -> None:
+        assert self._on_durable is not None
+        while True:
+            item = self._sync_queue.get()
+            if item is None:
+                return
+            results, paths = item
+            if self._stop.is_set() or self._error is not None:
+                continue
+            try:
+                sync_files(paths)
+                self._on_durable(results)
+            except BaseException as exc:  # reported on the simulating thread
+                with self._lock:
+                    self._error = self._error or exc
 
     def _run(self) -> None:
         while True:
@@ -85,14 +129,19 @@ class _FrameWriter:
             if self._stop.is_set() or self._error is not None:
                 spool.close()  # stopping: drop what is left
                 continue
+            paths: list[Any] = []
             try:
-                result = write_frame_job(job, spool, info)
+                if self._on_durable is None:
+                    result = write_frame_job(job, spool, info)
+                else:
+                    with deferred_sync(paths):
+                        result = write_frame_job(job, spool, info)
             except BaseException as exc:  # reported on the simulating thread
                 with self._lock:
                     self._error = self._error or exc
                 continue
             with self._lock:
-                self._finished[number] = result
+                self._finished[number] = (result, paths)
 
     def _raise(self) -> None:
         if self._error is not None:
@@ -117,12 +166,30 @@ class _FrameWriter:
         """The results written since the last call, in submission order."""
         while True:
             with self._lock:
-                result = self._finished.pop(self._reported, None)
-            if result is None:
+                done = self._finished.pop(self._reported, None)
+            if done is None:
                 self._raise()
                 return
             self._reported += 1
+            result, paths = done
+            if self._on_durable is not None:
+                self._block[0].append(result)
+                self._block[1].extend(paths)
+                if len(self._block[0]) >= SYNC_BLOCK:
+                    self._flush_block()
             yield result
+
+    def _flush_block(self) -> None:
+        """Hand the written frames not yet synced to the syncing thread."""
+        if not self._block[0]:
+            return
+        item, self._block = self._block, ([], [])
+        while True:
+            try:
+                self._sync_queue.put(item, timeout=0.1)
+                return
+            except queue.Full:
+                self._raise()
 
     def finish(self) -> None:
         """Wait until every queued frame is written."""
@@ -133,8 +200,27 @@ class _FrameWriter:
                 thread.join(0.1)
         self._raise()
 
+    def finish_sync(self) -> None:
+        """Once every result is taken: sync the last frames and wait for the syncing
+        thread."""
+        if self._on_durable is None:
+            return
+        self._flush_block()
+        self._sync_queue.put(None)
+        while self._syncer.is_alive():
+            self._syncer.join(0.1)
+        self._raise()
+
     def abandon(self) -> None:
-        """Stop after the frames being written (no-op once finished)."""
+        """Stop after the frames being written (no-op once finished); frames written but not
+        yet synced stay unsynced (not passed to ``on_durable``)."""
+        if self._syncer.is_alive():
+            self._stop.set()
+            while self._syncer.is_alive():
+                try:
+                    self._sync_queue.put(None, timeout=0.1)
+                except queue.Full:
+                    continue
         if not self._alive():
             return
         self._stop.set()

@@ -29,7 +29,7 @@ from typing import Any, Iterator
 import numpy as np
 import yaml
 
-from ..base.atomic import atomic_output, write_text_atomic
+from ..base.atomic import atomic_output, deferred_sync, sync_files, write_text_atomic
 from ..base.errors import ConfigError, OutputError
 from ..io.points import DEFAULT_SPOOL_MEMORY
 from ..io.sidecar import frame_is_complete
@@ -52,6 +52,7 @@ from .checks import (
     validate_sequences,
 )
 from .config import DatasetPlan, SequencePlan, load_plan, scenario_variant
+from .durable import DurableFrames
 from .executors import run_dask, run_serial
 from .frames import FrameJob
 from .identity import (
@@ -436,36 +437,43 @@ def _run(plan: DatasetPlan, root: Path, sequences: list[SequenceRun], exporter: 
     assignment, split_record = _splits(plan, sequences)
     summaries = [_sequence_summary(root, s, assignment.get(s.plan.name), bag, sharded)
                  for s in sequences]
-    if sharded:
+    if sharded:  # the manifest holds every sequence's values; poses in sequences.tar
         for summary in summaries:
             summary.update(root=SEQUENCES_ARCHIVE, **archive_members(summary["name"]))
-    write_manifest(root / MANIFEST, identity=identity, sequences=summaries, splits=split_record)
-    if sharded:
+        write_manifest(root / MANIFEST, identity=identity, sequences=summaries,
+                       splits=split_record)
         write_sequence_archive(root, sequences)
-    for seq in sequences:
-        assert seq.poses is not None
-        if sharded:
-            continue
-        seq.poses.save(seq.root / POSES)
-        if not bag and not sharded:
-            (seq.root / FRAMES_DIR).mkdir(parents=True, exist_ok=True)
-    if plan.multi and not sharded:  # sharded: the manifest holds every sequence's values
-        _write_text(root / DATASET_COPY, _dataset_copy(plan, root, sequences, exp_id))
-    if sharded:
         return DatasetResult(root, *run_sharded(root, sequences, exporter, identity, summaries,
                                                 assignment, split_record, workers=workers,
                                                 scheduler=scheduler, display=display,
                                                 verify=verify, source=plan.source,
                                                 previous=manifest))
-    if split_record is not None:
-        _write_split_lists(root, sequences, assignment, split_record, suffix)
+    # the first manifest, the poses, the copies and the splits are written atomically and
+    # made durable together, before any frame (one sync instead of one per file)
+    with deferred_sync([]) as written:
+        write_manifest(root / MANIFEST, identity=identity, sequences=summaries,
+                       splits=split_record)
+        for seq in sequences:
+            assert seq.poses is not None
+            seq.poses.save(seq.root / POSES)
+            if not bag:
+                (seq.root / FRAMES_DIR).mkdir(parents=True, exist_ok=True)
+        if plan.multi:
+            _write_text(root / DATASET_COPY, _dataset_copy(plan, root, sequences, exp_id))
+        if split_record is not None:
+            _write_split_lists(root, sequences, assignment, split_record, suffix)
+    sync_files(written)
     if bag:
         return _run_bags(root, sequences, exporter, identity, summaries, split_record,
                          display=display, verify=verify)
 
-    done = {s.plan.name: np.array([frame_is_complete(s.root / frame_relpath(f, suffix),
-                                                     verify=verify) is not None
-                                   for f in range(s.frames)], dtype=bool) for s in sequences}
+    # a frame written since the last synced block of an interrupted run is checked against
+    # its checksum too: after a crash it may be on disk empty or in part (dataset/durable.py)
+    durable = DurableFrames.read(root, manifest)
+    done = {s.plan.name: np.array([frame_is_complete(
+        s.root / frame_relpath(f, suffix),
+        verify=verify or (s.plan.name, f) not in durable) is not None
+        for f in range(s.frames)], dtype=bool) for s in sequences}
     total = sum(s.frames for s in sequences)
     skipped = int(sum(int(m.sum()) for m in done.values()))
 
@@ -478,11 +486,15 @@ def _run(plan: DatasetPlan, root: Path, sequences: list[SequenceRun], exporter: 
                                str(seq.copy_path), exporter.name,
                                exporter.options.model_dump(mode="json"), spool_memory)
 
+    written: dict[tuple[str, int], dict[str, Any]] = {}  # this run's frames, for the manifest
     try:
         with FrameProgress(total - skipped, display=display, already=skipped) as progress:
-            on_result = lambda result: progress.frame_done(result["points"])  # noqa: E731
+            def on_result(result: dict[str, Any]) -> None:
+                written[(result["sequence"], result["frame"])] = result
+                progress.frame_done(result["points"])
+
             if workers is None and scheduler is None:
-                run_serial(jobs(), on_result)
+                run_serial(jobs(), on_result, on_durable=durable.add)
             else:
                 run_dask(jobs(), on_result, workers=workers, scheduler=scheduler)
     except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM: say what is kept, and how to go on
@@ -491,7 +503,8 @@ def _run(plan: DatasetPlan, root: Path, sequences: list[SequenceRun], exporter: 
         raise type(exc)(f"{kept} of {total} frames are complete and kept in "
                         f"{root} (no partial frame file); rerun the same command to resume"
                         ) from None
-    _finish(root, sequences, identity, summaries, split_record, suffix)
+    _finish(root, sequences, identity, summaries, split_record, suffix, written)
+    durable.remove()
     return DatasetResult(root, total, progress.written, skipped, progress.points,
                          progress.elapsed)
 
@@ -549,15 +562,19 @@ def _run_bags(root: Path, sequences: list[SequenceRun], exporter: BagFormat,
 
 
 def _finish(root: Path, sequences: list[SequenceRun], identity: dict[str, Any],
-            summaries: list[dict[str, Any]], splits: dict[str, Any] | None, suffix: str) -> None:
+            summaries: list[dict[str, Any]], splits: dict[str, Any] | None, suffix: str,
+            written: dict[tuple[str, int], dict[str, Any]] | None = None) -> None:
+    """Write the final manifest: the frames this run wrote from their results (``written``,
+    the values of their sidecars), the others from their sidecars on disk."""
     totals = {"frames": 0, "points": 0, "bytes": 0}
+    written = written or {}
 
     def frames_of(index: int) -> Iterator[dict[str, Any]]:
         seq = sequences[index]
         rel = seq.root.relative_to(root).as_posix()
         for frame in range(seq.frames):
             path = seq.root / frame_relpath(frame, suffix)
-            record = frame_is_complete(path)
+            record = written.get((seq.plan.name, frame)) or frame_is_complete(path)
             if record is None:
                 raise OutputError("frame file or sidecar missing after the run", source=path)
             totals["frames"] += 1

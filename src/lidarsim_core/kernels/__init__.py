@@ -27,13 +27,16 @@ Environment variables
     (an error names the missing package); ``numpy``: never use them.
 
 Kernels are compiled on first use and cached on disk by numba (``NUMBA_CACHE_DIR`` moves the
-cache), so only the first run on a machine pays the compile time (a few seconds).
+cache), so only the first run on a machine pays the compile time (tens of seconds; compile
+them up front with progress through :func:`warm_up`'s ``display``); a new process loads them
+from the cache (:func:`cache_report` tells which were compiled and which loaded).
 """
 
 from __future__ import annotations
 
 import functools
 import os
+from typing import Any, Callable
 
 from ..base.errors import ConfigError
 
@@ -74,14 +77,17 @@ def enabled() -> bool:
     return False
 
 
-def warm_up() -> bool:
-    """Compile (or load from numba's cache) every kernel now, so that the first simulation is
-    not timed with it; returns whether the kernels are in use."""
-    if not enabled():
-        return False
+#: A warm-up's progress callback: ``display(done, total, name)``, called before each kernel
+#: is compiled or loaded (``done`` of ``total`` finished) and once more at the end.
+Display = Callable[[int, int, str], None]
+
+
+def _warm_up_calls() -> list[tuple[str, Callable[[], Any], Any]]:
+    """``(name, call, dispatcher)`` for every kernel, with the argument types the pipeline
+    passes."""
     import numpy as np
 
-    from .cull import cull_posed, motion_bound
+    from .cull import cull_by_grid, cull_posed, direction_grid, motion_bound
     from .patterns import cycle_rays, lissajous_directions, spinning_directions
     from .philox import ray_uniforms
     from .poses import chain_matrices, look_at_matrices
@@ -93,26 +99,81 @@ def warm_up() -> bool:
     one = np.zeros((1, 3))
     one[0, 0] = 1.0
     index = np.zeros(1, dtype=np.int64)
-    ray_uniforms(np.zeros(2, dtype=np.uint64), index, 1)
-    rose_directions(index, 1.0, 4.0, 0.5, 1.0, 5.0, 0.0)
     two = np.ones(2)
-    cycle_rays(index, 1, 1.0, np.zeros(1), np.zeros(1, dtype=np.int16))
-    spinning_directions(np.zeros(1), index, 1.0, 0.0, 1.0, np.zeros(1), np.zeros(1))
-    lissajous_directions(np.zeros(1), 1.0, 0.0, 0.1, 1.0, 0.0, 0.1, 0.0)
-    risley_directions(np.zeros(1), index, one, 0.1 * two, two, two, two,
-                      np.array([True, False]), 1.5 * two)
-    rotate_two_angles(one, np.zeros((1, 2)))
-    embree_rays(one, one, np.zeros(3), 1.0, 1e-6)
-    refine_hits(np.full(1, -1, dtype=np.int32), one, one, one, one, 1e-6,
-                np.empty(1, dtype=np.int64), np.empty(1), np.empty((1, 3)), 0)
     box = np.array([[-1.0, -1.0, -1.0]])
-    cull_posed(one, np.eye(3)[None], one, np.eye(3)[None], one, index,
-               np.zeros(1, dtype=np.bool_), box, -box, np.full(1, -1, dtype=np.int64), index,
-               0.0)
-    motion_bound(np.eye(3)[None], one, np.eye(3)[None], one, 0, 1.0)
-    chain_matrices(np.zeros(1), np.array([[0.0, 0.0, 0.0, 1.0]] * 2), one, np.ones(1))
-    look_at_matrices(one, np.zeros(3), np.array([0.0, 0.0, 1.0]))
+    corners = np.ones((1, 8, 3))
+    return [
+        ("philox", lambda: ray_uniforms(np.zeros(2, dtype=np.uint64), index, 1), ray_uniforms),
+        ("rose", lambda: rose_directions(index, 1.0, 4.0, 0.5, 1.0, 5.0, 0.0), rose_directions),
+        ("schedule", lambda: cycle_rays(index, 1, 1.0, np.zeros(1),
+                                        np.zeros(1, dtype=np.int16)), cycle_rays),
+        ("spinning", lambda: spinning_directions(np.zeros(1), index, 1.0, 0.0, 1.0,
+                                                 np.zeros(1), np.zeros(1)),
+         spinning_directions),
+        ("lissajous", lambda: lissajous_directions(np.zeros(1), 1.0, 0.0, 0.1, 1.0, 0.0, 0.1,
+                                                   0.0), lissajous_directions),
+        ("risley", lambda: risley_directions(np.zeros(1), index, one, 0.1 * two, two, two, two,
+                                             np.array([True, False]), 1.5 * two),
+         risley_directions),
+        ("angular error", lambda: rotate_two_angles(one, np.zeros((1, 2))), rotate_two_angles),
+        ("embree rays", lambda: embree_rays(one, one, np.zeros(3), 1.0, 1e-6), embree_rays),
+        ("refinement", lambda: refine_hits(np.full(1, -1, dtype=np.int32), one, one, one, one,
+                                           1e-6, np.empty(1, dtype=np.int64), np.empty(1),
+                                           np.empty((1, 3)), 0), refine_hits),
+        ("cull per pulse", lambda: cull_posed(
+            one, np.eye(3)[None], one, np.eye(3)[None], one, index,
+            np.zeros(1, dtype=np.bool_), box, -box, np.full(1, -1, dtype=np.int64), index, 0.0),
+         cull_posed),
+        ("motion bound", lambda: motion_bound(np.eye(3)[None], one, np.eye(3)[None], one, 0,
+                                              1.0), motion_bound),
+        ("cube map", lambda: direction_grid(corners, 4), direction_grid),
+        ("cube map lookup", lambda: cull_by_grid(one, np.ones((6, 4, 4), dtype=np.uint8)),
+         cull_by_grid),
+        ("rotation chains", lambda: chain_matrices(np.zeros(1),
+                                                   np.array([[0.0, 0.0, 0.0, 1.0]] * 2), one,
+                                                   np.ones(1)), chain_matrices),
+        ("look-at", lambda: look_at_matrices(one, np.zeros(3), np.array([0.0, 0.0, 1.0])),
+         look_at_matrices),
+    ]
+
+
+def warm_up(display: Display | None = None) -> bool:
+    """Compile (or load from numba's cache) every kernel now, so that the first simulation is
+    not timed with it; returns whether the kernels are in use.
+
+    Parameters
+    ----------
+    display
+        Called as ``display(done, total, name)`` before each kernel and once at the end
+        (``done == total``), so that a first run on a machine, which compiles every kernel
+        (tens of seconds), shows progress; later runs load them from the disk cache in a
+        fraction of a second (:func:`cache_report`).
+    """
+    if not enabled():
+        return False
+    calls = _warm_up_calls()
+    for done, (name, call, _) in enumerate(calls):
+        if display is not None:
+            display(done, len(calls), name)
+        call()
+    if display is not None:
+        display(len(calls), len(calls), "")
     return True
+
+
+def cache_report() -> dict[str, Any]:
+    """What this process's kernels came from, once they ran (e.g. after :func:`warm_up`):
+    ``{"compiled": [...], "loaded": [...]}`` kernel names (compiled here, or loaded from
+    numba's disk cache), and the cache ``directory``."""
+    compiled, loaded, directory = [], [], None
+    for name, _, dispatcher in _warm_up_calls():
+        stats = dispatcher.stats
+        directory = directory or stats.cache_path
+        if sum(stats.cache_misses.values()):
+            compiled.append(name)
+        elif sum(stats.cache_hits.values()):
+            loaded.append(name)
+    return {"compiled": compiled, "loaded": loaded, "directory": directory}
 
 
 def describe() -> str:

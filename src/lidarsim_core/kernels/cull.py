@@ -57,49 +57,82 @@ def _meets_tree(o, inv, box_lo, box_hi, first_child, root, grow, stack):  # noqa
 def direction_grid(corners, cells):  # noqa: ANN001, ANN201
     """A cube map of the directions that may meet any of the boxes, or None.
 
-    ``corners`` are the (B, 8, 3) corners of boxes in the sensor frame. Face ``f`` of the map
-    (axis ``f // 2``, sign ``+`` for even ``f``) covers the directions whose largest component
-    is that axis with that sign; cell ``(i, j)`` of a face is set when a direction in it may
-    meet a box: the bounding rectangle of the box's corners projected on the face (exact for
-    a box entirely on the face's side; a box straddling the face's plane sets the whole face,
-    as the projection is unbounded). Returns None when a box contains the origin.
+    ``corners`` are the (B, 8, 3) corners of boxes in the sensor frame, corner ``c`` at the
+    high end of the box's first, second and third edge where bit 0, 1, 2 of ``c`` is set.
+    Face ``f`` of the map (axis ``f // 2``, sign ``+`` for even ``f``) covers the directions
+    whose largest component is that axis with that sign; cell ``(i, j)`` of a face is set
+    when a direction in it may meet a box: the bounding rectangle of the projection on the
+    face of the box clipped to ``depth >= D / 2`` (``D`` the box's distance from the
+    origin). Every point of the box that a direction of the face reaches has ``depth >=
+    D / √3`` (it lies in the face's cone, where ``|p| <= √3 depth``), so the clipped box,
+    whose projection is bounded, holds them all: a box beside, across or near the sensor
+    sets only the cells it can be seen through. Returns None when the origin is in (or
+    within 1 µm of) a box.
     """
     grid = np.zeros((6, cells, cells), dtype=np.uint8)
     half = cells / 2.0
+    points = np.empty((20, 3))  # the clipped box's vertices: 8 corners, 12 edge crossings
     for b in range(corners.shape[0]):
         box = corners[b]
-        inside = True  # is the origin inside the box (its corners on both sides of each axis)?
-        for axis in range(3):
-            inside = inside and box[:, axis].min() <= 0.0 <= box[:, axis].max()
-        if inside:
+        # the box's nearest point to the origin (its edges are orthogonal)
+        near = box[0].copy()
+        scale = 0.0
+        for c in range(8):
+            scale = max(scale, abs(box[c, 0]), abs(box[c, 1]), abs(box[c, 2]))
+        for k in range(3):
+            edge = box[1 << k] - box[0]
+            length2 = edge[0] ** 2 + edge[1] ** 2 + edge[2] ** 2
+            if length2 > 0.0:
+                t = -(box[0, 0] * edge[0] + box[0, 1] * edge[1] + box[0, 2] * edge[2]) / length2
+                t = min(max(t, 0.0), 1.0)
+                near += t * edge
+        distance = math.sqrt(near[0] ** 2 + near[1] ** 2 + near[2] ** 2)
+        if distance <= 1e-6:
             return None
+        clip = 0.5 * distance
+        # rounding of the edge crossings and of the rays' u, v, relative to the depth
+        slack = 1e-9 + 1e-13 * scale / clip
         for face in range(6):
             axis = face // 2
             sign = 1.0 if face % 2 == 0 else -1.0
             u_axis = (axis + 1) % 3
             v_axis = (axis + 2) % 3
-            depth_min, depth_max = np.inf, -np.inf
-            u_min, u_max, v_min, v_max = np.inf, -np.inf, np.inf, -np.inf
+            count = 0
             for c in range(8):
                 depth = sign * box[c, axis]
-                depth_min = min(depth_min, depth)
-                depth_max = max(depth_max, depth)
-                if depth > 0.0:
-                    u, v = box[c, u_axis] / depth, box[c, v_axis] / depth
-                    u_min, u_max = min(u_min, u), max(u_max, u)
-                    v_min, v_max = min(v_min, v), max(v_max, v)
-            if depth_max <= 0.0:
-                continue  # the box is behind this face
-            if depth_min <= 0.0:
-                i0, i1, j0, j1 = 0, cells - 1, 0, cells - 1
-            else:  # a hair wider than the rectangle, for the rounding of the rays' u, v
-                i0 = min(max(int(math.floor((u_min - 1e-9 + 1.0) * half)), 0), cells - 1)
-                i1 = min(max(int(math.floor((u_max + 1e-9 + 1.0) * half)), 0), cells - 1)
-                j0 = min(max(int(math.floor((v_min - 1e-9 + 1.0) * half)), 0), cells - 1)
-                j1 = min(max(int(math.floor((v_max + 1e-9 + 1.0) * half)), 0), cells - 1)
-                if u_max < -1.0 - 1e-9 or u_min > 1.0 + 1e-9 or v_max < -1.0 - 1e-9 \
-                        or v_min > 1.0 + 1e-9:
-                    continue  # the box is seen only through other faces
+                if depth >= clip:
+                    points[count] = box[c]
+                    count += 1
+                for k in range(3):  # the edges from c to its neighbour across bit k
+                    other = c | (1 << k)
+                    if other == c:
+                        continue
+                    other_depth = sign * box[other, axis]
+                    if (depth >= clip) != (other_depth >= clip):
+                        w = (clip - depth) / (other_depth - depth)
+                        points[count] = box[c] + w * (box[other] - box[c])
+                        points[count, axis] = sign * clip
+                        count += 1
+            if count == 0:
+                continue  # the box is behind this face's cone
+            u_min, u_max, v_min, v_max = np.inf, -np.inf, np.inf, -np.inf
+            for p in range(count):
+                depth = sign * points[p, axis]
+                u, v = points[p, u_axis] / depth, points[p, v_axis] / depth
+                u_min, u_max = min(u_min, u), max(u_max, u)
+                v_min, v_max = min(v_min, v), max(v_max, v)
+            if u_max < -1.0 - slack or u_min > 1.0 + slack or v_max < -1.0 - slack \
+                    or v_min > 1.0 + slack:
+                continue  # the box is seen only through other faces
+            # a hair wider than the rectangle, for the rounding of the rays' u, v
+            i0 = min(max(int(math.floor((max(u_min - slack, -2.0) + 1.0) * half)), 0),
+                     cells - 1)
+            i1 = min(max(int(math.floor((min(u_max + slack, 2.0) + 1.0) * half)), 0),
+                     cells - 1)
+            j0 = min(max(int(math.floor((max(v_min - slack, -2.0) + 1.0) * half)), 0),
+                     cells - 1)
+            j1 = min(max(int(math.floor((min(v_max + slack, 2.0) + 1.0) * half)), 0),
+                     cells - 1)
             grid[face, i0:i1 + 1, j0:j1 + 1] = 1
     return grid
 
@@ -200,28 +233,53 @@ def cull_posed(directions, sensor_rotation, sensor_position, rotation, position,
 @njit(nogil=True, cache=True)
 def motion_bound(sensor_rotation, sensor_position, rotation, position, reference,
                  reach):  # noqa: ANN001, ANN201
-    """How far any point within ``reach`` of a target's origin strays, in the sensor frame,
-    from where the ``reference`` pose puts it: the largest ``‖Mᵢ − M₀‖_F · reach + |oᵢ − o₀|``
-    over the N poses, with ``Mᵢ = Rsᵢᵀ Rtᵢ`` and ``oᵢ = Rsᵢᵀ (ptᵢ − psᵢ)`` (the Frobenius
-    norm bounds the spectral one). Each array holds N rows or one (shared)."""
+    """A bound on how far any point within ``reach`` of a target's origin strays, in the
+    sensor frame, from where the ``reference`` pose puts it: ``max ‖Mᵢ − M₀‖_F · reach +
+    max |oᵢ − o₀|`` over the N poses, with ``Mᵢ = Rsᵢᵀ Rtᵢ`` and ``oᵢ = Rsᵢᵀ (ptᵢ − psᵢ)``
+    (the Frobenius norm bounds the spectral one). Each array holds N rows or one (shared).
+    With one sensor pose, ``‖Mᵢ − M₀‖_F = ‖Rtᵢ − Rt₀‖_F`` and ``|oᵢ − o₀| = |ptᵢ − pt₀|``
+    (a rotation keeps norms), so only the target's rows are read."""
     n = max(sensor_rotation.shape[0], sensor_position.shape[0], rotation.shape[0],
             position.shape[0])
+    worst_rotation = 0.0
+    worst_shift = 0.0
+    if sensor_rotation.shape[0] == 1 and sensor_position.shape[0] == 1:
+        if rotation.shape[0] > 1:
+            r0 = rotation[reference]
+            for i in range(rotation.shape[0]):
+                frob = 0.0
+                for a in range(3):
+                    for b in range(3):
+                        frob += (rotation[i, a, b] - r0[a, b]) ** 2
+                worst_rotation = max(worst_rotation, frob)
+        if position.shape[0] > 1:
+            p0 = position[reference]
+            for i in range(position.shape[0]):
+                shift = 0.0
+                for a in range(3):
+                    shift += (position[i, a] - p0[a]) ** 2
+                worst_shift = max(worst_shift, shift)
+        return math.sqrt(worst_rotation) * reach + math.sqrt(worst_shift)
     m0 = np.empty((3, 3))
     o0 = np.empty(3)
     m = np.empty((3, 3))
     o = np.empty(3)
-    worst = 0.0
     for i in range(-1, n):
         k = reference if i < 0 else i
-        rs = sensor_rotation[k if sensor_rotation.shape[0] > 1 else 0]
-        rt = rotation[k if rotation.shape[0] > 1 else 0]
-        ps = sensor_position[k if sensor_position.shape[0] > 1 else 0]
-        pt = position[k if position.shape[0] > 1 else 0]
-        dx, dy, dz = pt[0] - ps[0], pt[1] - ps[1], pt[2] - ps[2]
+        s = k if sensor_rotation.shape[0] > 1 else 0
+        t = k if rotation.shape[0] > 1 else 0
+        sp = k if sensor_position.shape[0] > 1 else 0
+        tp = k if position.shape[0] > 1 else 0
+        dx = position[tp, 0] - sensor_position[sp, 0]
+        dy = position[tp, 1] - sensor_position[sp, 1]
+        dz = position[tp, 2] - sensor_position[sp, 2]
         for a in range(3):
-            o[a] = rs[0, a] * dx + rs[1, a] * dy + rs[2, a] * dz
+            o[a] = sensor_rotation[s, 0, a] * dx + sensor_rotation[s, 1, a] * dy + \
+                sensor_rotation[s, 2, a] * dz
             for b in range(3):
-                m[a, b] = rs[0, a] * rt[0, b] + rs[1, a] * rt[1, b] + rs[2, a] * rt[2, b]
+                m[a, b] = sensor_rotation[s, 0, a] * rotation[t, 0, b] + \
+                    sensor_rotation[s, 1, a] * rotation[t, 1, b] + \
+                    sensor_rotation[s, 2, a] * rotation[t, 2, b]
         if i < 0:
             m0[:, :] = m
             o0[:] = o
@@ -232,5 +290,6 @@ def motion_bound(sensor_rotation, sensor_position, rotation, position, reference
             shift += (o[a] - o0[a]) ** 2
             for b in range(3):
                 frob += (m[a, b] - m0[a, b]) ** 2
-        worst = max(worst, math.sqrt(frob) * reach + math.sqrt(shift))
-    return worst
+        worst_rotation = max(worst_rotation, frob)
+        worst_shift = max(worst_shift, shift)
+    return math.sqrt(worst_rotation) * reach + math.sqrt(worst_shift)

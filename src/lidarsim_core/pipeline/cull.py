@@ -45,6 +45,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import kernels
+from ..geometry.posing import PoseMatrices
 from ..noise.outliers import SpuriousReturnModel
 from ..noise.rng import MAX_ABS_NORMAL
 from ..patterns.base import RayBatch
@@ -58,6 +59,12 @@ CULL_TREE_LEVELS = 6
 GRID_CELLS = 256
 #: Groups smaller than twice this are not split further.
 MIN_BOX_TRIANGLES = 8
+#: Fewest pulses of a block with a cube map of its own when targets move fast (below it, the
+#: pulses are tested one by one at their own poses).
+MIN_MOVING_BLOCK = 1024
+#: Times a piece is halved at most for targets that move fast (up to 4 blocks): beyond that,
+#: building a map per block cost more than testing each pulse on the two-target scene.
+MAX_MOVING_SPLITS = 2
 
 
 @dataclass(frozen=True)
@@ -97,36 +104,77 @@ class PulseCuller:
 
     def keep(self, ctx: RunContext, batch: RayBatch, t_frame: float) -> np.ndarray:
         """Rows of ``batch`` whose pulses may reach a target (int64, ascending)."""
-        from ..kernels.cull import cull_by_grid, cull_posed
+        from ..kernels.cull import cull_by_grid
 
         posed = piece_poses(ctx, batch, t_frame)
         m = max(len(posed.sensor), *(len(p) for p in posed.targets))
         trees = [cull_tree(target.mesh) for target in ctx.targets]
-        roots = np.cumsum([0] + [len(lo) for lo, _, _ in trees])[:-1]
-        directions = np.ascontiguousarray(batch.direction, dtype=np.float64)
+        directions = batch.direction
+        if directions.dtype != np.float64:
+            directions = directions.astype(np.float64)
         if m > 1:
-            grid = self._moving_grid(posed, trees, m)
-            if grid is not None:
-                return cull_by_grid(directions, grid)
-            # near or fast targets: the frame changes are made per pulse in the kernel, which
-            # indexes every pose array by pulse
-            posed = PiecePoses(posed.sensor.full(m), tuple(p.full(m) for p in posed.targets))
-            moving = np.array([len(p) > 1 for p in posed.targets])
-            first = np.cumsum([0] + [len(p) for p in posed.targets])[:-1]
-            return cull_posed(
-                directions, posed.sensor.matrix, posed.sensor.position,
-                np.ascontiguousarray(np.concatenate([p.matrix for p in posed.targets])),
-                np.ascontiguousarray(np.concatenate([p.position for p in posed.targets])),
-                first, moving, np.concatenate([t[0] for t in trees]),
-                np.concatenate([t[1] for t in trees]),
-                np.concatenate([np.where(t[2] >= 0, t[2] + root, -1)
-                                for t, root in zip(trees, roots)]),
-                roots, self.margin_rad)
+            # a cube map per block of pulses, each grown by its own motion; blocks in which
+            # the target moves too much are halved, down to MIN_MOVING_BLOCK pulses
+            kept = []
+            for start, stop, grid in self._moving_blocks(posed, trees, 0, m):
+                if grid is not None:
+                    rows = cull_by_grid(directions[start:stop], grid)
+                else:
+                    rows = self._per_pulse(directions[start:stop], posed, trees, start, stop)
+                kept.append(rows + start if start else rows)
+            return kept[0] if len(kept) == 1 else np.concatenate(kept)
         # one pose for the piece: look the directions up in a cube map
         grid = self._pose_grid(posed, 0, [0.0] * len(trees), trees)
         if grid is None:  # the sensor is inside a target's box: nothing to cull
             return np.arange(len(batch), dtype=np.int64)
         return cull_by_grid(directions, grid)
+
+    def _per_pulse(self, directions: np.ndarray, posed: PiecePoses,
+                   trees: list[tuple[np.ndarray, ...]], start: int, stop: int) -> np.ndarray:
+        """Rows (from 0) of the pulses ``start:stop`` that may reach a target, each tested
+        against the box trees at its own pose (:func:`lidarsim_core.kernels.cull.cull_posed`):
+        the fallback for a sensor inside a target's box, or a block of pulses within which a
+        target moves by more than a tenth of its size."""
+        from ..kernels.cull import cull_posed
+
+        m = stop - start
+
+        def rows(poses: PoseMatrices) -> PoseMatrices:
+            position = poses.position if len(poses.position) == 1 else \
+                poses.position[start:stop]
+            matrix = poses.matrix if len(poses.matrix) == 1 else poses.matrix[start:stop]
+            return PoseMatrices(position, matrix)
+
+        sensor = rows(posed.sensor)
+        sensor = sensor.full(m) if len(sensor) > 1 else sensor.full(1)
+        targets = [rows(p) for p in posed.targets]
+        moving = np.array([len(p) > 1 for p in targets])
+        targets = [p.full(m) if len(p) > 1 else p.full(1) for p in targets]
+        first = np.cumsum([0] + [len(p) for p in targets])[:-1]
+        roots = np.cumsum([0] + [len(lo) for lo, _, _ in trees])[:-1]
+        return cull_posed(
+            directions, sensor.matrix, sensor.position,
+            np.concatenate([p.matrix for p in targets]),
+            np.concatenate([p.position for p in targets]),
+            first, moving, np.concatenate([t[0] for t in trees]),
+            np.concatenate([t[1] for t in trees]),
+            np.concatenate([np.where(t[2] >= 0, t[2] + root, -1)
+                            for t, root in zip(trees, roots)]),
+            roots, self.margin_rad)
+
+    def _moving_blocks(self, posed: PiecePoses, trees: list[tuple[np.ndarray, ...]],
+                       start: int, stop: int, splits: int = 0
+                       ) -> list[tuple[int, int, np.ndarray | None]]:
+        """``(start, stop, grid)`` for consecutive blocks of the pulses ``start:stop``: the
+        cube map of each block (:meth:`_moving_grid`), or None where the pulses are to be
+        tested one by one."""
+        grid, too_fast = self._moving_grid(posed, trees, start, stop)
+        if grid is None and too_fast and stop - start >= 2 * MIN_MOVING_BLOCK and \
+                splits < MAX_MOVING_SPLITS:
+            middle = (start + stop) // 2
+            return self._moving_blocks(posed, trees, start, middle, splits + 1) + \
+                self._moving_blocks(posed, trees, middle, stop, splits + 1)
+        return [(start, stop, grid)]
 
     def _pose_grid(self, posed: PiecePoses, k: int, motion: list[float],
                    trees: list[tuple[np.ndarray, ...]]) -> np.ndarray | None:
@@ -149,32 +197,30 @@ class PulseCuller:
                                    + 1e-9]))
         return self._grid(rotations, origins, grows, trees)
 
-    def _moving_grid(self, posed: PiecePoses, trees: list[tuple[np.ndarray, ...]], m: int
-                     ) -> np.ndarray | None:
-        """With a pose per pulse, the cube map at the piece's middle pose with every box grown
-        by how far the target moves relative to the sensor during the piece (a box grown by
-        ``d`` in the body frame holds every point that strays by at most ``d``); None when a
-        target is nearer than its size (its boxes would straddle the map's faces and fill
-        them) or moves more than a tenth of its size (or the sensor is inside a box)."""
+    def _moving_grid(self, posed: PiecePoses, trees: list[tuple[np.ndarray, ...]],
+                     start: int, stop: int) -> tuple[np.ndarray | None, bool]:
+        """With a pose per pulse, the cube map of the pulses ``start:stop`` at their middle
+        pose with every box grown by how far the target moves relative to the sensor among
+        them (a box grown by ``d`` in the body frame holds every point that strays by at
+        most ``d``), and whether a target moves more than a tenth of its size among them
+        (then the grid is None, and smaller blocks may do). The grid is also None when the
+        sensor is within a grown box."""
         from ..kernels.cull import motion_bound
 
-        middle = m // 2
-        sensor = posed.sensor.position[min(middle, len(posed.sensor.position) - 1)]
+        def rows(array: np.ndarray) -> np.ndarray:
+            return array if len(array) == 1 else array[start:stop]
+
+        middle = (stop - start) // 2
         motion = []
         for poses, (lo, hi, _) in zip(posed.targets, trees):
             size = float(np.linalg.norm(hi[0] - lo[0]))
-            rotation = poses.matrix[min(middle, len(poses.matrix) - 1)]
-            centre = poses.position[min(middle, len(poses.position) - 1)] + \
-                rotation @ (0.5 * (lo[0] + hi[0]))
-            if float(np.linalg.norm(centre - sensor)) < size:
-                return None
             reach = float(np.sqrt((np.maximum(np.abs(lo[0]), np.abs(hi[0])) ** 2).sum()))
-            moved = motion_bound(posed.sensor.matrix, posed.sensor.position, poses.matrix,
-                                 poses.position, middle, reach)
+            moved = motion_bound(rows(posed.sensor.matrix), rows(posed.sensor.position),
+                                 rows(poses.matrix), rows(poses.position), middle, reach)
             if not moved <= 0.1 * size:
-                return None
+                return None, True
             motion.append(moved * (1 + 1e-9) + 1e-9)
-        return self._pose_grid(posed, middle, motion, trees)
+        return self._pose_grid(posed, start + middle, motion, trees), False
 
     def _grid(self, rotations: list[np.ndarray], origins: list[np.ndarray],
               grows: list[np.ndarray], trees: list[tuple[np.ndarray, ...]]
