@@ -21,6 +21,9 @@ The fence's ``title`` says what else a block is (the rule, never a list of block
 ``title="install"``
     Installs, builds or tests lidarsim itself (``pip install``, ``pytest``, ``mkdocs``): not
     run, since the blocks run inside such an installation (``.ci/run`` runs these).
+``title="example"``
+    Code for a library lidarsim does not install (PyTorch in docs/training.md): shown, not
+    run here; the page's own test runs it where that library is installed.
 ``title="<file name>"`` (a name with a suffix, e.g. ``title="my_scenario.yaml"``)
     The file's text: written to that path of the page's folder before the blocks after it
     run (a Python or shell block with a file title is written, not run).
@@ -47,7 +50,7 @@ from pathlib import Path
 
 RUN_LANGUAGES = {"python": "python", "py": "python", "bash": "bash", "sh": "bash",
                  "shell": "bash"}
-NOT_RUN_TITLES = {"signature", "synopsis", "install"}
+NOT_RUN_TITLES = {"signature", "synopsis", "install", "example"}
 _FENCE = re.compile(r"^(?P<indent>[ \t]*)(?P<fence>```+|~~~+)(?P<info>.*)$")
 
 

@@ -17,6 +17,7 @@ import yaml
 
 from ..base.atomic import write_text_atomic
 from ..base.errors import ConfigError
+from ..base.outputs import check_group, make_parent
 from ..scenario.model import Scenario
 from .steered import INTERPOLATION, SteeredPath
 
@@ -72,6 +73,10 @@ def write_record(path: Path, scenario: Scenario, paths: dict[str, SteeredPath], 
     files = {body: f"{path.stem}.{body.replace('/', '_')}.csv" for body in paths}
     data = record_scenario(scenario, start_s=start_s, dt=dt, frames=frames,
                            keyframe_files=files)
+    # the keyframe files and the scenario are one group: all checked, the folder made, then
+    # written (the README's rule: missing output folders are created)
+    check_group([path.parent / f for f in files.values()] + [path], overwrite=overwrite)
+    make_parent(path)
     for body, steered in paths.items():
         write_text_atomic(path.parent / files[body], steered.csv_text(), overwrite=overwrite)
     header = ("# The record of a closed-loop session (lidarsim_core.loop): replays its "
