@@ -7,7 +7,7 @@ import json
 import os
 import shutil
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 import yaml
 
@@ -117,15 +117,19 @@ def old_scenario(path: Path) -> dict[str, Any] | None:
         return None
 
 
-def scenario_differences(root: Path, sequences: list[SequenceRun],
-                          manifest: dict[str, Any]) -> list[str]:
+def scenario_differences(root: Path, sequences: list[SequenceRun], manifest: dict[str, Any],
+                         old_of: Callable[[SequenceRun], dict[str, Any] | None] | None = None
+                         ) -> list[str]:
+    """What differs between the sequences of this run and those of the dataset in ``root``:
+    their names, then each one's scenario against the copy the dataset kept (``old_of`` reads
+    that copy; by default the sequence folder's ``scenario.yaml``)."""
     old_names = [s["name"] for s in manifest.get("identity", {}).get("sequences", [])]
     new_names = [s.plan.name for s in sequences]
     if old_names != new_names:
         return [f"sequences: {old_names} → {new_names}"]
     lines = []
     for seq in sequences:
-        old = old_scenario(seq.copy_path)
+        old = old_of(seq) if old_of is not None else old_scenario(seq.copy_path)
         prefix = "" if len(sequences) == 1 else f"{seq.plan.name}: "
         lines += [prefix + line for line in differences(old, seq.data)]
     return lines

@@ -20,8 +20,8 @@ from ..base.atomic import atomic_output
 from ..base.errors import ConfigError, OutputError
 from ..io.rangeimage import has_layout
 from ..io.sidecar import sha256_file
+from .checks import scenario_differences
 from .executors import run_dask
-from .identity import differences
 from .layout import MANIFEST, POSES, SCENARIO_COPY, SPLITS
 from .manifest import write_manifest
 from .progress import FrameProgress
@@ -79,17 +79,13 @@ def read_archive_member(root: Path, member: str) -> bytes | None:
 def sharded_differences(root: Path, sequences: list[SequenceRun], manifest: dict[str, Any]
                         ) -> list[str]:
     """What differs between the sequences of this run and those of the sharded dataset in
-    ``root`` (the counterpart of :func:`~.checks.scenario_differences`)."""
-    old_names = [s["name"] for s in manifest.get("identity", {}).get("sequences", [])]
-    new_names = [s.plan.name for s in sequences]
-    if old_names != new_names:
-        return [f"sequences: {old_names} → {new_names}"]
-    lines = []
-    for seq in sequences:
+    ``root``: :func:`~.checks.scenario_differences` with the scenario copies read from the
+    sequence archive."""
+    def old_of(seq: SequenceRun) -> dict[str, Any] | None:
         text = read_archive_member(root, archive_members(seq.plan.name)["scenario"])
-        old = yaml.safe_load(text) if text is not None else None
-        lines += [f"{seq.plan.name}: {line}" for line in differences(old, seq.data)]
-    return lines
+        return yaml.safe_load(text) if text is not None else None
+
+    return scenario_differences(root, sequences, manifest, old_of)
 
 
 def _write_splits(root: Path, record: dict[str, Any]) -> None:
