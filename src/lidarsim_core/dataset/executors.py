@@ -153,13 +153,7 @@ class _FrameWriter:
     def put(self, job: FrameJob, spool: Any, info: Any) -> None:
         """Queue a simulated frame (after re-raising an error of a writer)."""
         self._raise()
-        item = (self._submitted, job, spool, info)
-        while True:
-            try:
-                self._queue.put(item, timeout=0.1)
-                break
-            except queue.Full:
-                self._raise()
+        self._put(self._queue, (self._submitted, job, spool, info))
         self._submitted += 1
 
     def results(self) -> Iterator[dict[str, Any]]:
@@ -184,9 +178,14 @@ class _FrameWriter:
         if not self._block[0]:
             return
         item, self._block = self._block, ([], [])
+        self._put(self._sync_queue, item)
+
+    def _put(self, target: "queue.Queue[Any]", item: Any) -> None:
+        """Put ``item`` on a bounded queue, re-raising a worker's error while it is full (a
+        dead worker would otherwise leave the queue full for ever)."""
         while True:
             try:
-                self._sync_queue.put(item, timeout=0.1)
+                target.put(item, timeout=0.1)
                 return
             except queue.Full:
                 self._raise()

@@ -8,7 +8,7 @@ import zipfile
 import zlib
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Iterator
+from typing import IO, Any, Iterator
 
 import numpy as np
 
@@ -121,6 +121,29 @@ def check_input(path: str | Path, what: str) -> int:
     """The size of ``path`` after the bounded reader's checks (a regular file, not a FIFO,
     device, directory or dangling link, under the ``data_bytes`` limit)."""
     return check_input_file(path, what, limit_name="data_bytes")
+
+
+#: Longest text header (PLY, PCD) lidarsim reads; its own are a few KB.
+MAX_HEADER_BYTES = 1 << 20
+
+
+def header_lines(stream: IO[bytes], path: str | Path, what: str, end: str) -> Iterator[str]:
+    """The lines of a text header (PLY, PCD) read from ``stream``, decoded, each read with a
+    bound; the caller stops at its ``end`` line.
+
+    Raises
+    ------
+    ConfigError
+        At the end of the file before the ``end`` line, or past :data:`MAX_HEADER_BYTES`.
+    """
+    while True:
+        raw = stream.readline(MAX_HEADER_BYTES)
+        if not raw:
+            raise ConfigError(f"{what} header has no {end} line", source=path)
+        if stream.tell() > MAX_HEADER_BYTES:
+            raise ConfigError(f"{what} header is longer than {MAX_HEADER_BYTES:,} bytes",
+                              source=path)
+        yield raw.decode("utf-8", errors="replace").rstrip("\r\n")
 
 
 def check_record_count(count: object, record_bytes: int, available: int, *,

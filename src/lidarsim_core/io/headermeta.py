@@ -14,7 +14,10 @@ trailing white space (which some readers strip from comments) and no byte needs 
 from __future__ import annotations
 
 import json
+from pathlib import Path
 from typing import Any, Iterable
+
+from ..base.errors import ConfigError
 
 #: Characters of JSON per header line (the whole line stays under ~200 characters).
 PIECE_CHARS = 160
@@ -27,12 +30,22 @@ def metadata_lines(metadata: dict[str, Any], prefix: str) -> list[str]:
     return [prefix + text[i:i + PIECE_CHARS] for i in range(0, len(text), PIECE_CHARS)]
 
 
-def metadata_from_lines(lines: Iterable[str], prefix: str) -> dict[str, Any] | None:
+def metadata_from_lines(lines: Iterable[str], prefix: str, *, source: str | Path,
+                        field: str) -> dict[str, Any] | None:
     """Join the pieces of every line starting with ``prefix``; ``None`` if there is none.
 
     Also reads files that hold the whole JSON on one line, as earlier versions wrote.
+
+    Raises
+    ------
+    ConfigError
+        If the pieces are not JSON (naming ``source`` and the header ``field``).
     """
     pieces = [line[len(prefix):].strip() for line in lines if line.startswith(prefix)]
     if not pieces:
         return None
-    return json.loads("".join(pieces))
+    try:
+        return json.loads("".join(pieces))
+    except ValueError as exc:
+        raise ConfigError(f"the lidarsim-frame comments are not JSON ({exc})", source=source,
+                          field=field) from None

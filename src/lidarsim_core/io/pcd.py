@@ -35,7 +35,13 @@ from ..base.components import ComponentOptions
 from ..base.errors import ConfigError, OutputError
 from ..hookspecs import hookimpl
 from .base import Exporter
-from .columns import cast_column, check_input, check_record_count, reader_errors
+from .columns import (
+    cast_column,
+    check_input,
+    check_record_count,
+    header_lines,
+    reader_errors,
+)
 from .headermeta import metadata_from_lines, metadata_lines
 
 if TYPE_CHECKING:
@@ -134,20 +140,12 @@ def read_pcd_columns(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str,
     """
     from ..records.pointcloud import POINT_FIELDS
 
-
     path = Path(path)
     size = check_input(path, "PCD file")
     header: dict[str, list[str]] = {}
     comments: list[str] = []
     with open(path, "rb") as stream, reader_errors(path, "PCD file"):
-        while True:
-            raw = stream.readline(_MAX_HEADER_BYTES)
-            if not raw:
-                raise ConfigError("PCD header has no DATA line", source=path)
-            if stream.tell() > _MAX_HEADER_BYTES:
-                raise ConfigError(f"PCD header is longer than {_MAX_HEADER_BYTES:,} bytes",
-                                  source=path)
-            line = raw.decode("utf-8", errors="replace").rstrip("\r\n")
+        for line in header_lines(stream, path, "PCD", "DATA"):
             if line.startswith("#"):
                 comments.append(line)
             elif line.strip():
@@ -195,16 +193,8 @@ def read_pcd_columns(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str,
             columns[column] = cast_column(data[name], POINT_FIELDS.get(column,
                                                                         data[name].dtype),
                                           source=path, field=name)
-        try:
-            metadata = metadata_from_lines(comments, _METADATA_PREFIX)
-        except ValueError as exc:
-            raise ConfigError(f"the lidarsim-frame comments are not JSON ({exc})",
-                              source=path, field="# lidarsim-frame") from None
-    return columns, metadata
-
-
-#: Longest PCD header lidarsim reads (its own are a few KB).
-_MAX_HEADER_BYTES = 1 << 20
+    return columns, metadata_from_lines(comments, _METADATA_PREFIX, source=path,
+                                        field="# lidarsim-frame")
 
 
 def read_pcd(path: str | Path) -> "PointCloud":

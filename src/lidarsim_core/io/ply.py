@@ -45,7 +45,7 @@ from pydantic import Field
 from ..base.errors import ConfigError, OutputError
 from ..hookspecs import hookimpl
 from .base import Exporter
-from .columns import check_input, check_record_count, reader_errors
+from .columns import check_input, check_record_count, header_lines, reader_errors
 from .dialects import Dialect, DialectOptions, column_name, record_names
 from .headermeta import metadata_from_lines, metadata_lines
 
@@ -191,16 +191,8 @@ def read_ply_columns(path: str | Path) -> tuple[dict[str, np.ndarray], dict[str,
         names = list(dtype.names or ())
         columns = {new: np.array(data[name])
                    for name, new in zip(names, record_names(names, POINT_FIELDS))}
-        try:
-            metadata = metadata_from_lines(comments, METADATA_PREFIX)
-        except ValueError as exc:
-            raise ConfigError(f"the lidarsim-frame comments are not JSON ({exc})",
-                              source=path, field="comment lidarsim-frame") from None
-    return columns, metadata
-
-
-#: Longest PLY header lidarsim reads (its own are a few KB; RPly stops at 1 KB per line).
-MAX_HEADER_BYTES = 1 << 20
+    return columns, metadata_from_lines(comments, METADATA_PREFIX, source=path,
+                                        field="comment lidarsim-frame")
 
 
 def _ply_header(stream: IO[bytes], path: Path
@@ -214,19 +206,12 @@ def _ply_header(stream: IO[bytes], path: Path
     element = None
     if stream.readline(64).strip() != b"ply":
         raise ConfigError("not a PLY file (no 'ply' magic line)", source=path)
-    while True:
-        raw = stream.readline(MAX_HEADER_BYTES)
-        if not raw:
-            raise ConfigError("PLY header has no end_header line", source=path)
-        if stream.tell() > MAX_HEADER_BYTES:
-            raise ConfigError(f"PLY header is longer than {MAX_HEADER_BYTES:,} bytes",
-                              source=path)
-        line = raw.decode("utf-8", errors="replace").rstrip("\r\n")
+    for line in header_lines(stream, path, "PLY", "end_header"):
         words = line.split()
         if not words:
             continue
         if words[0] == "end_header":
-            return comments, props, count, fmt
+            break
         if words[0] == "comment":
             comments.append(line[len("comment "):])
         elif words[0] == "format":
@@ -254,6 +239,7 @@ def _ply_header(stream: IO[bytes], path: Path
                 raise ConfigError(f"PLY property '{words[2]}' is declared twice",
                                   source=path, field=words[2])
             props.append((words[2], PLY_TYPES[words[1]]))
+    return comments, props, count, fmt
 
 
 @hookimpl
