@@ -75,14 +75,23 @@ def _rejection(word, c0, lane, k0, k1, xs, fs):  # noqa: ANN001, ANN202
 
 
 @njit(inline="always", cache=True)
-def ziggurat_normal(word, c0, lane, k0, k1, xs, fs):  # noqa: ANN001, ANN201
-    """One standard normal from its first ``word`` (block counter ``c0``, place ``lane``), for
-    use inside other kernels: one multiply and one comparison on ~99 % of draws."""
+def ziggurat_first(word, xs):  # noqa: ANN001, ANN201
+    """The fast path of one draw from its first ``word``: ``(z, outside)``; ``z`` is the
+    normal unless ``outside`` (~1 % of draws), then :func:`ziggurat_rejection` gives it.
+
+    One multiply and one comparison. The sign is applied by a multiplication by ±1 (exact:
+    the bits of a negation), not by a branch on a random bit, and the rare path is left to
+    the caller: a function that either returns ``±x`` or calls the rejection, inlined into the
+    loop, measured 22 ns per normal against 5.4 ns for this form.
+    """
     layer = np.intp(word & _LAYER_MASK)
     x = _unit(word) * xs[layer]
-    if x < xs[layer + 1]:
-        return -x if (word >> _SIGN_SHIFT) & _ONE else x
-    return _rejection(word, c0, lane, k0, k1, xs, fs)
+    return x * (1.0 - 2.0 * np.float64((word >> _SIGN_SHIFT) & _ONE)), x >= xs[layer + 1]
+
+
+#: The rare path of a draw: ``ziggurat_rejection(word, c0, lane, k0, k1, xs, fs)`` (the
+#: first word, its block counter and place, the key, the tables) gives the normal.
+ziggurat_rejection = _rejection
 
 
 @njit(nogil=True, cache=True)
@@ -114,5 +123,8 @@ def ray_normals(key, ray_index, draws, xs, fs):  # noqa: ANN001, ANN201
             for j in range(4):
                 column = 4 * block + j
                 if column < draws:
-                    out[row, column] = ziggurat_normal(w[j], c0, np.uint64(j), k0, k1, xs, fs)
+                    z, outside = ziggurat_first(w[j], xs)
+                    if outside:
+                        z = _rejection(w[j], c0, np.uint64(j), k0, k1, xs, fs)
+                    out[row, column] = z
     return out
