@@ -4,6 +4,7 @@
 Run from the repository root::
 
     python benchmarks/bench_normals.py [--rays 1048576] [--rounds 11] [--duration 1.0]
+    python benchmarks/bench_normals.py --stats 1000000000   # + a long statistical check
 
 Every figure is the best of ``--rounds`` interleaved rounds (lidarsim_core.bench.timing
 .interleaved_best), so the ratios within one run are fair on a shared machine. It prints:
@@ -14,7 +15,11 @@ Every figure is the best of ``--rounds`` interleaved rounds (lidarsim_core.bench
   the Philox uniforms alone (the words' cost, a floor for both) beside them;
 * the demo frame (``lidarsim demo``'s scene, ``--duration`` s scan, the datasheet's angular and
   range errors) with ``normals: inverse_cdf`` and ``normals: ziggurat``, on one thread and on
-  all threads: the time of ``Simulation.run_frame`` and the ratio.
+  all threads: the time of ``Simulation.run_frame`` and the ratio;
+* with ``--stats N``: N Ziggurat normals (40 seeds × 25 frames of one stream) summed up
+  against the normal law: the mean, the variance and the fraction of negatives as z-scores,
+  the counts beyond 3–6σ against their expectation with exact binomial p-values (a check
+  far beyond the tests' 4·10^6 draws: 10^9 take about a minute).
 """
 
 from __future__ import annotations
@@ -80,11 +85,38 @@ def demo_frames(duration: float, rounds: int) -> dict[str, float]:
     return best
 
 
+def statistics(total: int) -> None:
+    """Print the moments and tail counts of ``total`` Ziggurat normals (see module doc)."""
+    from scipy import stats
+
+    per = max(4, total // 1000) // 4  # 40 seeds × 25 frames, 4 draws per ray
+    count, s1, s2, negative = 0, 0.0, 0.0, 0
+    beyond = dict.fromkeys((3, 4, 5, 6), 0)
+    for seed in range(300, 340):
+        for frame in range(25):
+            z = rng.ray_normals(seed, frame, "big", np.arange(per), 4, "ziggurat").ravel()
+            count += z.size
+            s1 += float(z.sum())
+            s2 += float((z * z).sum())
+            negative += int((z < 0).sum())
+            for k in beyond:
+                beyond[k] += int((np.abs(z) > k).sum())
+    print(f"\n{count:,} Ziggurat normals: mean z-score {s1 / np.sqrt(count):+.2f}, "
+          f"variance z-score {(s2 / count - 1) / np.sqrt(2 / count):+.2f}, "
+          f"negatives z-score {(negative / count - 0.5) / np.sqrt(0.25 / count):+.2f}")
+    for k, seen in beyond.items():
+        p = 2 * stats.norm.sf(k)
+        print(f"  |z| > {k}: {seen:,} (expected {count * p:,.1f}), binomial p = "
+              f"{stats.binomtest(seen, count, p).pvalue:.3f}")
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rays", type=int, default=1 << 20)
     parser.add_argument("--rounds", type=int, default=11)
     parser.add_argument("--duration", type=float, default=1.0)
+    parser.add_argument("--stats", type=int, default=0, metavar="N",
+                        help="also check N Ziggurat normals' moments and tails")
     args = parser.parse_args()
     kernels.warm_up()
     print(f"ns per normal ({args.rays:,} rays × 2 draws, best of {args.rounds} interleaved "
@@ -103,6 +135,8 @@ def main() -> None:
     for label in ("1 thread", "all threads"):
         ratio = frames[f"{label} inverse_cdf"] / frames[f"{label} ziggurat"]
         print(f"  {label}: inverse_cdf time / ziggurat time = {ratio:.3f}")
+    if args.stats:
+        statistics(args.stats)
 
 
 if __name__ == "__main__":
