@@ -17,6 +17,7 @@ import pytest
 from scipy import stats
 from scipy.special import ndtri
 
+import lidarsim_core as ls
 from lidarsim_core import kernels
 from lidarsim_core.base.errors import ConfigError
 from lidarsim_core.noise import rng
@@ -237,7 +238,7 @@ def test_default_scenarios_keep_their_dump_hash_and_points():
         np.testing.assert_array_equal(b[name], column, err_msg=name)
 
 
-def test_ziggurat_frames_are_named_reproducible_and_normal(monkeypatch):
+def test_ziggurat_frames_are_named_reproducible_and_normal(monkeypatch, tmp_path):
     data = _small_demo(normals="ziggurat")
     data["noise"] = [{"name": "range", "options": {"sigma_m": 0.05}}]
     zig = scenario_from_dict(data)
@@ -248,6 +249,8 @@ def test_ziggurat_frames_are_named_reproducible_and_normal(monkeypatch):
     monkeypatch.setenv("LIDARSIM_THREADS", "2")
     other = Simulation(zig).run_frame(0)
     assert one.frame.extra["normals"] == "ziggurat"
+    one.save(tmp_path / "frame.ply")  # the file says which stream made it
+    assert ls.read(tmp_path / "frame.ply").frame.extra["normals"] == "ziggurat"
     for name, column in one.columns.items():
         np.testing.assert_array_equal(other[name], column, err_msg=name)
     error = (one["range"] - one["range_true"]) / 0.05
