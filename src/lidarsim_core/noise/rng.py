@@ -6,6 +6,11 @@ ray index, draw number)``: NumPy's Philox-4×64 generator is keyed by a hash of
 receives the same noise whatever the chunk size, backend, thread or worker count. With the
 compiled kernels (:mod:`lidarsim_core.kernels`) the same Philox words are computed per ray in
 numba, bit for bit.
+
+Normal numbers come from the words in one of two ways (:data:`NORMAL_GENERATORS`, the
+scenario's ``normals``): ``inverse_cdf``, the default and the seed paper's stream, is
+``ndtri`` of :func:`ray_uniforms`; ``ziggurat`` is Marsaglia & Tsang's Ziggurat on the same
+words (:mod:`lidarsim_core.noise.ziggurat`), exact too, with other numbers.
 """
 
 from __future__ import annotations
