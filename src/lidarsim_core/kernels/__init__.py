@@ -7,6 +7,8 @@ loops instead:
 * :mod:`.philox`: the counter-based random numbers of :mod:`lidarsim_core.noise.rng`, bit for bit
   the same words as NumPy's ``Philox`` (integer arithmetic), but generated only for the rays
   asked for;
+* :mod:`.ziggurat`: the ``ziggurat`` normal generator on the same words (Marsaglia & Tsang),
+  bit for bit the NumPy reference of :mod:`lidarsim_core.noise.ziggurat`;
 * :mod:`.rotation`: the seed paper's angular error (two rotations about axes perpendicular to
   the ray), the same arithmetic in the same order as the NumPy code;
 * :mod:`.trig` and :mod:`.rose`: the rose pattern with a sine and cosine that LLVM can inline
@@ -95,6 +97,7 @@ def _warm_up_calls() -> list[tuple[str, Callable[[], Any], Any]]:
     from .risley import risley_directions
     from .rose import rose_directions
     from .rotation import rotate_two_angles
+    from .ziggurat import ray_normals as ziggurat_normals
 
     one = np.zeros((1, 3))
     one[0, 0] = 1.0
@@ -102,8 +105,13 @@ def _warm_up_calls() -> list[tuple[str, Callable[[], Any], Any]]:
     two = np.ones(2)
     box = np.array([[-1.0, -1.0, -1.0]])
     corners = np.ones((1, 8, 3))
+    key = np.zeros(2, dtype=np.uint64)  # stream keys and the Ziggurat tables are read-only
+    key.flags.writeable = False
+    table = np.ones(257)
+    table.flags.writeable = False
     return [
-        ("philox", lambda: ray_uniforms(np.zeros(2, dtype=np.uint64), index, 1), ray_uniforms),
+        ("philox", lambda: ray_uniforms(key, index, 1), ray_uniforms),
+        ("ziggurat", lambda: ziggurat_normals(key, index, 1, table, table), ziggurat_normals),
         ("rose", lambda: rose_directions(index, 1.0, 4.0, 0.5, 1.0, 5.0, 0.0), rose_directions),
         ("schedule", lambda: cycle_rays(index, 1, 1.0, np.zeros(1),
                                         np.zeros(1, dtype=np.int16)), cycle_rays),

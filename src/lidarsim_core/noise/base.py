@@ -21,7 +21,7 @@ import numpy as np
 
 from ..base.components import Component
 from ..scenario.datasheet import SensorDatasheet
-from .rng import ray_normals, ray_uniforms
+from .rng import INVERSE_CDF, MAX_ABS_NORMAL, max_abs_normal, ray_normals, ray_uniforms
 
 if TYPE_CHECKING:
     from ..instrument.linkbudget import LinkBudget
@@ -30,17 +30,27 @@ if TYPE_CHECKING:
 @dataclass(frozen=True)
 class NoiseContext:
     """What a noise model may depend on besides the rays: the sensor, the seed and the frame,
-    and the calibrated link budget (``None`` without ``sensor.detection``)."""
+    the calibrated link budget (``None`` without ``sensor.detection``) and the normal
+    generator of the run (the scenario's ``normals``: ``inverse_cdf``, the seed paper's
+    stream, or ``ziggurat``; :func:`lidarsim_core.noise.rng.ray_normals`)."""
 
     sensor: SensorDatasheet
     seed: int
     frame: int
     stream: str
     link: "LinkBudget | None" = None
+    normal_generator: str = INVERSE_CDF
 
     def normals(self, ray_index: np.ndarray, draws: int) -> np.ndarray:
-        """(N, draws) standard normals for these rays from this model's own stream."""
-        return ray_normals(self.seed, self.frame, self.stream, ray_index, draws)
+        """(N, draws) standard normals for these rays from this model's own stream, by the
+        run's normal generator."""
+        return ray_normals(self.seed, self.frame, self.stream, ray_index, draws,
+                           self.normal_generator)
+
+    def max_abs_normal(self) -> float:
+        """The largest ``|z|`` that :meth:`normals` can return (8.21 for ``inverse_cdf``,
+        12.23 for ``ziggurat``)."""
+        return max_abs_normal(self.normal_generator)
 
     def uniforms(self, ray_index: np.ndarray, draws: int) -> np.ndarray:
         """(N, draws) uniforms in (0, 1) for these rays from this model's own stream."""
@@ -91,13 +101,18 @@ class GaussianRayRotation:
     """What a ray stage does, told to the pipeline so it can skip pulses early.
 
     ``sigma_rad == 0``: the model leaves rays alone. Otherwise it turns each ray by two
-    angles ``ndtri(u1)·σ`` and ``ndtri(u2)·σ``, where ``u1, u2`` are the first two uniforms
-    of ``ctx.uniforms(ray_index, 2)``: the seed paper's angular error. Every such draw is
-    within :data:`lidarsim_core.noise.rng.MAX_ABS_NORMAL` σ, so the pipeline knows how far a pulse
-    can turn and skips those that cannot reach a target (:mod:`lidarsim_core.pipeline.cull`).
+    angles ``z1·σ`` and ``z2·σ``, where ``z1, z2`` are ``ctx.normals(ray_index, 2)``: the seed
+    paper's angular error. With the default generator they are ``ndtri(u1)``, ``ndtri(u2)``
+    of the first two uniforms of ``ctx.uniforms(ray_index, 2)``. Every such draw is within
+    ``max_abs_normal`` σ (:data:`lidarsim_core.noise.rng.MAX_ABS_NORMAL` for the inverse CDF),
+    so the pipeline knows how far a pulse can turn and skips those that cannot reach a
+    target (:mod:`lidarsim_core.pipeline.cull`).
     """
 
     sigma_rad: float
+    max_abs_normal: float = MAX_ABS_NORMAL
+    #: The normal generator of the draws (``ctx.normal_generator``).
+    normal_generator: str = INVERSE_CDF
 
 
 class NoiseModel(Component):

@@ -68,7 +68,8 @@ class AngularError(NoiseModel):
     def ray_rotation(self, ctx: NoiseContext) -> GaussianRayRotation | None:
         if type(self).perturb_rays is not AngularError.perturb_rays:  # a subclass changed it
             return None
-        return GaussianRayRotation(self.sigma_rad(ctx))
+        return GaussianRayRotation(self.sigma_rad(ctx), ctx.max_abs_normal(),
+                                   ctx.normal_generator)
 
 
 class RangeOptions(ComponentOptions):

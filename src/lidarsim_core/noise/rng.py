@@ -6,6 +6,11 @@ ray index, draw number)``: NumPy's Philox-4×64 generator is keyed by a hash of
 receives the same noise whatever the chunk size, backend, thread or worker count. With the
 compiled kernels (:mod:`lidarsim_core.kernels`) the same Philox words are computed per ray in
 numba, bit for bit.
+
+Normal numbers come from the words in one of two ways (:data:`NORMAL_GENERATORS`, the
+scenario's ``normals``): ``inverse_cdf``, the default and the seed paper's stream, is
+``ndtri`` of :func:`ray_uniforms`; ``ziggurat`` is Marsaglia & Tsang's Ziggurat on the same
+words (:mod:`lidarsim_core.noise.ziggurat`), exact too, with other numbers.
 """
 
 from __future__ import annotations
@@ -16,6 +21,7 @@ import zlib
 import numpy as np
 
 from .. import kernels
+from . import ziggurat
 
 #: Uniforms are (k + 1/2) / 2**52 for the top 52 bits k of a word: exactly representable, so
 #: they lie strictly inside (0, 1), symmetric about 1/2 (with 53 bits, k + 1/2 rounds to 2**53
@@ -25,6 +31,11 @@ _SCALE = 2.0 ** -UNIFORM_BITS
 #: The largest |z| :func:`ray_normals` can return: ndtri of the smallest uniform, 2**-53
 #: (8.2095...). Noise models drawing ``z·σ`` are therefore bounded by construction.
 MAX_ABS_NORMAL = 8.209536151601387
+#: The normal generators of :func:`ray_normals`; the first is the default (the seed paper's).
+INVERSE_CDF = "inverse_cdf"
+NORMAL_GENERATORS = (INVERSE_CDF, "ziggurat")
+#: The largest |z| of the Ziggurat generator (its tail's bound, 12.23).
+ZIGGURAT_MAX_ABS = ziggurat.MAX_ABS_NORMAL
 _BLOCK = 4  # Philox-4x64 yields four 64-bit words per counter value
 
 
@@ -40,6 +51,30 @@ def _stream_key(seed: int, frame: int, stream: str) -> np.ndarray:
     key = seq.generate_state(2, dtype=np.uint64)
     key.flags.writeable = False
     return key
+
+
+def ray_words(seed: int, frame: int, stream: str, ray_index: np.ndarray, draws: int
+              ) -> np.ndarray:
+    """The raw 64-bit Philox words behind :func:`ray_uniforms` (NumPy), ``draws`` per ray.
+
+    Word ``j`` of ray ``i`` is word ``j mod 4`` of the block with counter
+    ``i·B + j // 4 + 1`` (``B = ceil(draws / 4)``).
+
+    Returns
+    -------
+    numpy.ndarray
+        (N, draws) uint64.
+    """
+    ray_index = np.asarray(ray_index, dtype=np.int64)
+    if ray_index.size == 0:
+        return np.empty((0, draws), dtype=np.uint64)
+    lo, hi = int(ray_index.min()), int(ray_index.max())
+    if lo < 0:
+        raise ValueError("ray indices must be non-negative")
+    blocks = -(-draws // _BLOCK)
+    gen = np.random.Philox(key=stream_key(seed, frame, stream), counter=[lo * blocks, 0, 0, 0])
+    raw = gen.random_raw((hi - lo + 1) * blocks * _BLOCK).reshape(hi - lo + 1, blocks * _BLOCK)
+    return raw[ray_index - lo, :draws]
 
 
 def ray_uniforms(seed: int, frame: int, stream: str, ray_index: np.ndarray, draws: int
@@ -64,24 +99,68 @@ def ray_uniforms(seed: int, frame: int, stream: str, ray_index: np.ndarray, draw
     ray_index = np.asarray(ray_index, dtype=np.int64)
     if ray_index.size == 0:
         return np.empty((0, draws))
-    lo, hi = int(ray_index.min()), int(ray_index.max())
-    if lo < 0:
+    if int(ray_index.min()) < 0:
         raise ValueError("ray indices must be non-negative")
-    key = stream_key(seed, frame, stream)
     if kernels.enabled():  # the same words, computed for these rays only
         from ..kernels.philox import ray_uniforms as compiled_uniforms
 
+        key = stream_key(seed, frame, stream)
         return compiled_uniforms(key, np.ascontiguousarray(ray_index), int(draws))
-    blocks = -(-draws // _BLOCK)
-    gen = np.random.Philox(key=key, counter=[lo * blocks, 0, 0, 0])
-    raw = gen.random_raw((hi - lo + 1) * blocks * _BLOCK).reshape(hi - lo + 1, blocks * _BLOCK)
-    raw = raw[ray_index - lo, :draws]
+    raw = ray_words(seed, frame, stream, ray_index, draws)
     return ((raw >> np.uint64(64 - UNIFORM_BITS)).astype(np.float64) + 0.5) * _SCALE
 
 
-def ray_normals(seed: int, frame: int, stream: str, ray_index: np.ndarray, draws: int
-                ) -> np.ndarray:
-    """Standard normal numbers, ``draws`` per ray, by inverse CDF of :func:`ray_uniforms`."""
-    from scipy.special import ndtri
+def max_abs_normal(generator: str = INVERSE_CDF) -> float:
+    """The largest ``|z|`` that :func:`ray_normals` can return with ``generator`` (culling
+    margins rely on it)."""
+    return MAX_ABS_NORMAL if _check_generator(generator) == INVERSE_CDF else ZIGGURAT_MAX_ABS
 
-    return ndtri(ray_uniforms(seed, frame, stream, ray_index, draws))
+
+def _check_generator(generator: str) -> str:
+    if generator not in NORMAL_GENERATORS:
+        raise ValueError(f"unknown normal generator {generator!r}; known: "
+                         f"{', '.join(NORMAL_GENERATORS)}")
+    return generator
+
+
+def ray_normals(seed: int, frame: int, stream: str, ray_index: np.ndarray, draws: int,
+                generator: str = INVERSE_CDF) -> np.ndarray:
+    """Standard normal numbers, ``draws`` per ray, from the stream's Philox words.
+
+    Parameters
+    ----------
+    seed, frame, stream, ray_index, draws
+        As :func:`ray_uniforms`.
+    generator
+        ``"inverse_cdf"`` (default, the seed paper's stream): ``ndtri`` of
+        :func:`ray_uniforms`. ``"ziggurat"``: Marsaglia & Tsang's Ziggurat on the same words
+        (:mod:`lidarsim_core.noise.ziggurat`): another exact normal stream, different numbers,
+        cheaper to draw.
+
+    Returns
+    -------
+    numpy.ndarray
+        (N, draws) float64.
+    """
+    if _check_generator(generator) == INVERSE_CDF:
+        from scipy.special import ndtri
+
+        return ndtri(ray_uniforms(seed, frame, stream, ray_index, draws))
+    ray_index = np.asarray(ray_index, dtype=np.int64)
+    if ray_index.size == 0:
+        return np.empty((0, draws))
+    if int(ray_index.min()) < 0:
+        raise ValueError("ray indices must be non-negative")
+    key = stream_key(seed, frame, stream)
+    if kernels.enabled():
+        from ..kernels.ziggurat import ray_normals as compiled_normals
+
+        return compiled_normals(key, np.ascontiguousarray(ray_index), int(draws),
+                                ziggurat.X_TABLE, ziggurat.F_TABLE)
+    words = ray_words(seed, frame, stream, ray_index, draws)
+    blocks = -(-draws // _BLOCK)
+    column = np.arange(draws, dtype=np.uint64)
+    c0 = (ray_index.astype(np.uint64)[:, None] * np.uint64(blocks)
+          + column // np.uint64(_BLOCK) + np.uint64(1))
+    lane = np.broadcast_to(column % np.uint64(_BLOCK), words.shape)
+    return ziggurat.normals_from_words(key, words, c0, lane).reshape(words.shape)

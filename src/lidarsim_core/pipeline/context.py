@@ -132,7 +132,7 @@ class RunContext:
     def noise_contexts(self, frame: int) -> list[NoiseContext]:
         """The noise chain's contexts of ``frame``, in chain order (one random stream each)."""
         return [NoiseContext(self.sensor, self.scenario.seed, frame, f"noise.{i}.{m.name}",
-                             self.link)
+                             self.link, self.scenario.normals)
                 for i, m in enumerate(self.noise)]
 
     def trajectory_poses(self, trajectory: Trajectory, t: np.ndarray, t_frame: float

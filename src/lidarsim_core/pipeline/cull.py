@@ -8,7 +8,9 @@ it can reach a target at all; only those that can go on.
 
 The test is conservative, so culling never changes a result. Every Gaussian draw of
 :func:`lidarsim_core.noise.rng.ray_normals` is within ``MAX_ABS_NORMAL`` (8.21) standard deviations
-by construction (the uniforms behind it are at least 2**-53 from 0 and 1). Two rotations by
+by construction (the uniforms behind it are at least 2**-53 from 0 and 1); a draw of the
+``ziggurat`` generator within 12.23 (its tail's bound), and the ray stage tells which
+(:class:`~lidarsim_core.noise.base.GaussianRayRotation`). Two rotations by
 ``a1`` and ``a2`` about perpendicular axes turn a ray by ``arccos(cos a1 cos a2) <=
 hypot(a1, a2)`` (a right spherical triangle), and a beam's sub-rays add its largest sub-ray
 angle. So the flown ray and its sub-rays stay within ``margin`` of the nominal ray, and a pulse
@@ -47,7 +49,6 @@ import numpy as np
 from .. import kernels
 from ..geometry.posing import PoseMatrices
 from ..noise.outliers import SpuriousReturnModel
-from ..noise.rng import MAX_ABS_NORMAL
 from ..patterns.base import RayBatch
 from ..scene.mesh import Mesh
 from .context import RunContext
@@ -96,8 +97,9 @@ class PulseCuller:
                 return None
             # two rotations by a1, a2 about perpendicular axes turn the ray by
             # arccos(cos a1 · cos a2) <= hypot(a1, a2) (a right spherical triangle), and
-            # every draw is at most MAX_ABS_NORMAL standard deviations
-            margin += math.sqrt(2.0) * MAX_ABS_NORMAL * rotation.sigma_rad
+            # every draw is at most max_abs_normal standard deviations (MAX_ABS_NORMAL for
+            # the seed paper's inverse CDF)
+            margin += math.sqrt(2.0) * rotation.max_abs_normal * rotation.sigma_rad
         if ctx.sub_rays is not None:
             margin += float(np.arccos(np.clip(ctx.sub_rays.coefficients[:, 0].min(), -1, 1)))
         return cls(margin * (1.0 + 1e-6))  # a hair of slack for rounding

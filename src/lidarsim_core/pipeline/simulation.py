@@ -45,6 +45,7 @@ from ..base.threads import ordered_map, piece_size, split_range, worker_threads
 from ..instrument.beam import SubRays, sub_rays_for
 from ..instrument.linkbudget import LinkBudget, detection_range_limit, link_budget
 from ..noise.outliers import SpuriousReturnModel
+from ..noise.rng import INVERSE_CDF
 from ..plugins.guards import guard_components
 from ..plugins.manager import get_registry
 from ..plugins.registry import Registry
@@ -231,7 +232,8 @@ class Simulation:
 
     def measurement_info(self) -> dict[str, Any]:
         """The measurement model beyond the seed paper's, for frame metadata (empty when
-        none of beam, detection and false alarms is on)."""
+        none of beam, detection and false alarms is on, and the normals are the seed
+        paper's inverse CDF; ``{"normals": "ziggurat"}`` names the other generator)."""
         ctx = self.context
         info: dict[str, Any] = {}
         if ctx.link is not None:
@@ -251,7 +253,10 @@ class Simulation:
                 info["dual_return"] = ctx.dual_return
             if ctx.return_mode == "multi":
                 info["max_returns"] = ctx.max_returns
-        return {"measurement": info} if info else {}
+        extra: dict[str, Any] = {"measurement": info} if info else {}
+        if ctx.scenario.normals != INVERSE_CDF:  # the seed paper's stream stays unnamed
+            extra["normals"] = ctx.scenario.normals
+        return extra
 
     def run_frame(self, frame: int = 0, chunk_rays: int | None = None) -> PointCloud:
         """Simulate one frame and return its point cloud."""

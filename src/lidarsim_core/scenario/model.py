@@ -15,6 +15,7 @@ A minimal scenario (YAML)::
     scan: {duration_s: 1.0}
     backend: {name: auto}                  # auto | numpy | embree | any installed backend
     noise: [{name: angular}, {name: range}]   # omit for the datasheet's errors; [] for none
+    # normals: ziggurat                    # the noise's normal generator; default inverse_cdf
 
 Relative mesh and datasheet paths are resolved against the scenario file's directory.
 """
@@ -219,6 +220,8 @@ _REALISM_SENSOR_FIELDS = ("beam", "detection", "returns", "multipath", "receiver
 
 #: Top-level blocks added later, left out of dumps when unset (see ``Scenario``).
 _LATER_BLOCKS = ("earth",)
+#: Top-level fields added later, left out of dumps at their default (see ``Scenario``).
+_LATER_DEFAULTS = {"normals": "inverse_cdf"}
 
 
 class Scenario(_Strict):
@@ -235,6 +238,11 @@ class Scenario(_Strict):
     noise: list[NamedComponent] | None = Field(
         None, description="Noise chain in order; default: the datasheet's angular and range "
                           "errors; [] for a noiseless run.")
+    normals: Literal["inverse_cdf", "ziggurat"] = Field(
+        "inverse_cdf", description="How the noise models' normal numbers are drawn from their "
+                                   "random streams: 'inverse_cdf' (the seed paper's stream, "
+                                   "the default) or 'ziggurat' (Marsaglia & Tsang's method on "
+                                   "the same counters: exact, other numbers, cheaper).")
     sun: SunConfig | None = Field(
         None, description="The Sun: shadows, solar background false alarms and blinding "
                           "(needs sensor.detection); omitted: a dark sky.")
@@ -276,6 +284,9 @@ class Scenario(_Strict):
         data = handler(self)
         for key in _LATER_BLOCKS:
             if key in data and data[key] is None:
+                del data[key]
+        for key, default in _LATER_DEFAULTS.items():
+            if key in data and data[key] == default:
                 del data[key]
         return data
 
