@@ -92,12 +92,16 @@ class RayHitLayout:
         """Fields of ``RTCHit``: Ng (3), u, v, primID, geomID and the instance stacks."""
         return 7 + self.instance_levels * (2 if self.instance_array else 1)
 
+    @property
+    def fields(self) -> int:
+        """Fields of ``RTCRayHit``: the 12 of ``RTCRay`` and those of ``RTCHit``."""
+        return 12 + self.hit_fields
+
     def words(self, width: int) -> int:
         """Size of ``RTCRayHit`` (width 1) or ``RTCRayHitN`` in 4-byte words."""
-        fields = 12 + self.hit_fields
         if width == 1:
-            return -(-fields // 4) * 4  # RTC_ALIGN(16) on RTCRay and RTCHit
-        return fields * width
+            return -(-self.fields // 4) * 4  # RTC_ALIGN(16) on RTCRay and RTCHit
+        return self.fields * width
 
     def nbytes(self, width: int) -> int:
         """Size in bytes (``sizeof(RTCRayHit)``: 80 or 96 for the official 4.x builds)."""
@@ -206,7 +210,7 @@ class EmbreeScene:
             raise ValueError("origins and directions must both have shape (N, 3)")
         out = np.empty(len(o32), dtype=np.int32)
         lib = self.library
-        cast_faces(lib.intersect[width], self.handle, width, lib.layout.words(width),
+        cast_faces(lib.intersect[width], self.handle, width, lib.layout.fields,
                    o32, d32, out)
         return out
 

@@ -101,19 +101,62 @@ def _rayhit_buffer(width, fields):  # noqa: ANN001, ANN202
 
 
 @njit(inline="always")
-def _reset_lane(buf, flt, width, lane):  # noqa: ANN001, ANN202
-    """What a hit overwrote and the next ray needs reset: tfar, primID, geomID."""
+def _set_ray(buf, flt, width, lane, ox, oy, oz, dx, dy, dz):  # noqa: ANN001, ANN202
+    """Lane ``lane``'s origin and direction (rounded to float32 here), and what a hit
+    overwrote and the next ray needs reset: tfar, primID, geomID."""
+    flt[lane] = ox
+    flt[width + lane] = oy
+    flt[2 * width + lane] = oz
+    flt[4 * width + lane] = dx
+    flt[5 * width + lane] = dy
+    flt[6 * width + lane] = dz
     flt[8 * width + lane] = _TFAR
     buf[17 * width + lane] = _INVALID
     buf[18 * width + lane] = _INVALID
 
 
 @njit(inline="always")
-def _call(intersect, scene, width, buf, valid):  # noqa: ANN001, ANN202
-    if width == 1:
-        _intersect1(intersect, scene, buf.ctypes.data)
-    else:
-        _intersect_packet(intersect, valid.ctypes.data, scene, buf.ctypes.data)
+def _shifted_ray(buf, flt, width, lane, origins, directions, i, centre, radius,
+                 epsilon):  # noqa: ANN001, ANN202
+    """Ray ``i`` moved to just before the bounding sphere, relative to its centre (float64,
+    as :func:`lidarsim_core.kernels.raycast.embree_rays`), into lane ``lane``."""
+    rx = origins[i, 0] + -centre[0]
+    ry = origins[i, 1] + -centre[1]
+    rz = origins[i, 2] + -centre[2]
+    dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
+    shift = max(-(rx * dx + ry * dy + rz * dz) - radius, epsilon)
+    _set_ray(buf, flt, width, lane, rx + dx * shift, ry + dy * shift, rz + dz * shift,
+             dx, dy, dz)
+
+
+@njit(inline="always")
+def _refine(prim, row, origins, directions, epsilon, first_vertex, normals, face_out,
+            distance_out, normal_out):  # noqa: ANN001, ANN202
+    """Row ``row``'s face, float64 distance to the face's plane and normal (as
+    :func:`lidarsim_core.kernels.raycast.refine_hits`); -1, NaN, NaN for a miss or a refined
+    distance at or below ``epsilon``."""
+    face_out[row] = -1
+    distance_out[row] = np.nan
+    normal_out[row, 0] = np.nan
+    normal_out[row, 1] = np.nan
+    normal_out[row, 2] = np.nan
+    if prim == _INVALID:
+        return
+    f = np.int64(prim)
+    nx, ny, nz = normals[f, 0], normals[f, 1], normals[f, 2]
+    ox, oy, oz = origins[row, 0], origins[row, 1], origins[row, 2]
+    dx, dy, dz = directions[row, 0], directions[row, 1], directions[row, 2]
+    denom = dx * nx + dy * ny + dz * nz
+    vx = first_vertex[f, 0] - ox
+    vy = first_vertex[f, 1] - oy
+    vz = first_vertex[f, 2] - oz
+    distance = (vx * nx + vy * ny + vz * nz) / denom
+    if distance > epsilon:
+        face_out[row] = f
+        distance_out[row] = distance
+        normal_out[row, 0] = nx
+        normal_out[row, 1] = ny
+        normal_out[row, 2] = nz
 
 
 @njit(nogil=True, cache=True)
@@ -122,24 +165,26 @@ def cast_faces(intersect, scene, width, fields, origins, directions, out):  # no
     first, -1 for a miss: embreex's ``EmbreeScene.run`` through ``intersect`` (the address of
     ``rtcIntersect1``, or of ``rtcIntersect{width}`` for packets of ``width`` rays)."""
     buf, flt = _rayhit_buffer(width, fields)
-    valid = _aligned_words(width, max(16, 4 * width)).view(np.int32)
     n = origins.shape[0]
+    if width == 1:
+        address = buf.ctypes.data
+        for i in range(n):
+            _set_ray(buf, flt, 1, 0, origins[i, 0], origins[i, 1], origins[i, 2],
+                     directions[i, 0], directions[i, 1], directions[i, 2])
+            _intersect1(intersect, scene, address)
+            prim = buf[17]
+            out[i] = -1 if prim == _INVALID else np.int32(prim)
+        return
+    valid = _aligned_words(width, max(16, 4 * width)).view(np.int32)
     for start in range(0, n, width):
         count = min(width, n - start)
         for lane in range(width):
             if lane < count:
                 i = start + lane
-                flt[lane] = origins[i, 0]
-                flt[width + lane] = origins[i, 1]
-                flt[2 * width + lane] = origins[i, 2]
-                flt[4 * width + lane] = directions[i, 0]
-                flt[5 * width + lane] = directions[i, 1]
-                flt[6 * width + lane] = directions[i, 2]
-                _reset_lane(buf, flt, width, lane)
-                valid[lane] = -1
-            else:
-                valid[lane] = 0
-        _call(intersect, scene, width, buf, valid)
+                _set_ray(buf, flt, width, lane, origins[i, 0], origins[i, 1], origins[i, 2],
+                         directions[i, 0], directions[i, 1], directions[i, 2])
+            valid[lane] = -1 if lane < count else 0
+        _intersect_packet(intersect, valid.ctypes.data, scene, buf.ctypes.data)
         for lane in range(count):
             prim = buf[17 * width + lane]
             out[start + lane] = -1 if prim == _INVALID else np.int32(prim)
@@ -157,50 +202,23 @@ def cast_refined(intersect, scene, width, fields, origins, directions, centre, r
     (``first_vertex``, ``normals``) is recomputed from the original float64 ray; a refined
     distance at or below ``epsilon`` (a grazing float32 artefact) counts as a miss."""
     buf, flt = _rayhit_buffer(width, fields)
+    if width == 1:
+        address = buf.ctypes.data
+        for row in range(lo, hi):
+            _shifted_ray(buf, flt, 1, 0, origins, directions, row, centre, radius, epsilon)
+            _intersect1(intersect, scene, address)
+            _refine(buf[17], row, origins, directions, epsilon, first_vertex, normals,
+                    face_out, distance_out, normal_out)
+        return
     valid = _aligned_words(width, max(16, 4 * width)).view(np.int32)
     for start in range(lo, hi, width):
         count = min(width, hi - start)
         for lane in range(width):
             if lane < count:
-                i = start + lane
-                rx = origins[i, 0] + -centre[0]
-                ry = origins[i, 1] + -centre[1]
-                rz = origins[i, 2] + -centre[2]
-                dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
-                shift = max(-(rx * dx + ry * dy + rz * dz) - radius, epsilon)
-                flt[lane] = rx + dx * shift
-                flt[width + lane] = ry + dy * shift
-                flt[2 * width + lane] = rz + dz * shift
-                flt[4 * width + lane] = dx
-                flt[5 * width + lane] = dy
-                flt[6 * width + lane] = dz
-                _reset_lane(buf, flt, width, lane)
-                valid[lane] = -1
-            else:
-                valid[lane] = 0
-        _call(intersect, scene, width, buf, valid)
+                _shifted_ray(buf, flt, width, lane, origins, directions, start + lane, centre,
+                             radius, epsilon)
+            valid[lane] = -1 if lane < count else 0
+        _intersect_packet(intersect, valid.ctypes.data, scene, buf.ctypes.data)
         for lane in range(count):
-            row = start + lane
-            prim = buf[17 * width + lane]
-            face_out[row] = -1
-            distance_out[row] = np.nan
-            normal_out[row, 0] = np.nan
-            normal_out[row, 1] = np.nan
-            normal_out[row, 2] = np.nan
-            if prim == _INVALID:
-                continue
-            f = np.int64(prim)
-            nx, ny, nz = normals[f, 0], normals[f, 1], normals[f, 2]
-            ox, oy, oz = origins[row, 0], origins[row, 1], origins[row, 2]
-            dx, dy, dz = directions[row, 0], directions[row, 1], directions[row, 2]
-            denom = dx * nx + dy * ny + dz * nz
-            vx = first_vertex[f, 0] - ox
-            vy = first_vertex[f, 1] - oy
-            vz = first_vertex[f, 2] - oz
-            distance = (vx * nx + vy * ny + vz * nz) / denom
-            if distance > epsilon:
-                face_out[row] = f
-                distance_out[row] = distance
-                normal_out[row, 0] = nx
-                normal_out[row, 1] = ny
-                normal_out[row, 2] = nz
+            _refine(buf[17 * width + lane], start + lane, origins, directions, epsilon,
+                    first_vertex, normals, face_out, distance_out, normal_out)
