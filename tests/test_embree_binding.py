@@ -211,3 +211,28 @@ def _embreex_scene(binding_scene):
     scene = rtcore_scene.EmbreeScene()
     TriangleMesh(scene, np.ascontiguousarray(binding_scene._vertices[:, :3].reshape(-1, 3, 3)))
     return scene
+
+
+@needs_numba
+def test_without_the_binding_the_backend_casts_through_embreex(monkeypatch):
+    from lidarsim_core.backends import embree_backend
+    from lidarsim_core.backends.embree_backend import EmbreeBackend
+
+    monkeypatch.setenv("LIDARSIM_KERNELS", "auto")
+    mesh = icosphere_mesh(1.0, 2)
+    origins, directions = _hard_rays(mesh, 5_000, seed=2)
+    backend = EmbreeBackend()
+    through_binding = backend.intersect(backend.prepare(mesh), origins, directions)
+
+    def refuse():
+        raise BackendError("the Embree library x is version 4.9.0; its ray/hit layout is known "
+                           "for Embree 4.0 only")
+
+    monkeypatch.setattr(embree4, "load", refuse)
+    ok, why = embree_backend.binding_status()
+    assert not ok and "version 4.9.0" in why
+    prepared = backend.prepare(mesh)
+    assert prepared.compiled is None and type(prepared.scene).__module__.startswith("embreex")
+    through_embreex = backend.intersect(prepared, origins, directions)
+    assert through_binding.face.tobytes() == through_embreex.face.tobytes()
+    assert through_binding.distance.tobytes() == through_embreex.distance.tobytes()

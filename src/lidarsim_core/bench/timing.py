@@ -102,6 +102,17 @@ def packet_embree_probe(mesh: Mesh, origins: np.ndarray, directions: np.ndarray,
     return lambda: list(pool.map(lambda b: part(*b), bounds))
 
 
+def binding_description() -> str:
+    """What lidarsim's Embree binding loaded (version, ``RTCRayHit`` size, packet width), or
+    why it did not."""
+    try:
+        library = embree4.load()
+    except BackendError as exc:
+        return f"not loaded: {exc}"
+    return (f"Embree {library.version_text}, {library.layout.nbytes(1)}-byte RTCRayHit, "
+            f"packets of {library.packet_width}")
+
+
 def add_packet_columns(result: dict[str, Any], rate: dict[str, float]) -> None:
     """Add to a scene's ``result`` the packet cast's rays/s (``bare_embree_packets``,
     ``bare_embree_packets_1thread``; None without the binding) and the simulation over it
