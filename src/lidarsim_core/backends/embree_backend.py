@@ -149,7 +149,9 @@ class EmbreeBackend(RayBackend):
                    out: tuple[np.ndarray, np.ndarray, np.ndarray]) -> None:
         """Cast rays ``lo:hi`` and write their hits into ``out`` (runs on a worker thread)."""
         eps = self.options.epsilon_m
-        if prepared.compiled is not None:  # shift, cast and refinement in one compiled loop
+        # shift, cast and refinement in one compiled loop (a mesh prepared with the kernels on
+        # stays on this path if LIDARSIM_KERNELS changes later in the process: same bits)
+        if prepared.compiled is not None:
             from ..kernels.embree_cast import cast_refined
 
             address, width, fields = prepared.compiled
