@@ -11,17 +11,19 @@ import dataclasses
 import gc
 import importlib.metadata
 from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 pytest.importorskip("embreex", reason="the Embree binding loads the library embreex installs")
 
+from lidarsim_core import kernels  # noqa: E402
 from lidarsim_core.backends import embree4  # noqa: E402
 from lidarsim_core.base.errors import BackendError  # noqa: E402
 from lidarsim_core.testing.meshes import box_mesh, icosphere_mesh, unit  # noqa: E402
 
-needs_numba = pytest.mark.skipif(not __import__("lidarsim_core.kernels").kernels.numba_importable(),
+needs_numba = pytest.mark.skipif(not kernels.numba_importable(),
                                  reason="the compiled casts need numba (extra 'fast')")
 
 
@@ -64,8 +66,7 @@ def test_the_library_is_embreexs_and_its_layout_matches_its_version():
     library = embree4.load()
     dist = importlib.metadata.distribution("embreex")
     assert library.path.is_file() and "embree4" in library.path.name
-    assert library.path.resolve().is_relative_to(
-        __import__("pathlib").Path(str(dist.locate_file(""))).resolve())
+    assert library.path.resolve().is_relative_to(Path(str(dist.locate_file(""))).resolve())
     assert library.version[0] == 4 and library.version[1] in embree4.KNOWN_LAYOUTS
     # Embree's headers: RTCRay is 12 words; RTCHit is Ng, u, v, primID, geomID, instID[L]
     # (and instPrimID[L] from 4.3), both aligned to 16 bytes: 80 or 96 bytes with one level
