@@ -5,9 +5,9 @@ embreex casts rays one Python call at a time; compiled code (the numba kernels o
 packet variants ``rtcIntersect4/8/16`` directly, with the GIL released, if it has the
 functions' addresses and a scene. This module finds the shared library that embreex ships
 (``embreex.libs/libembree4-*.so.4`` in its wheel), loads it with :mod:`ctypes`, builds a
-triangle scene exactly as embreex does (same scene flags and build quality, one triangle
-geometry with three unshared vertices per face, 16-byte vertex stride) and hands out the
-addresses.
+triangle scene exactly as embreex 4.4 does (the robust scene flag, Embree's default build
+quality, one triangle geometry with three unshared vertices per face, 16-byte vertex stride)
+and hands out the addresses.
 
 The ray/hit structures that those functions read and write are not fixed by Embree's API:
 ``RTCHit`` ends in ``instID[RTC_MAX_INSTANCE_LEVEL_COUNT]`` and, from Embree 4.3 built with
@@ -262,7 +262,6 @@ def _declare(lib: ctypes.CDLL) -> None:
         "rtcGetDeviceError": (i, [p]),
         "rtcNewScene": (p, [p]),
         "rtcSetSceneFlags": (None, [p, i]),
-        "rtcSetSceneBuildQuality": (None, [p, i]),
         "rtcCommitScene": (None, [p]),
         "rtcReleaseScene": (None, [p]),
         "rtcNewGeometry": (p, [p, i]),
