@@ -74,6 +74,8 @@ SUITE = {"duration_s": 0.1, "rounds": 2, "scenes": {"tumbling-risley": {
     "description": "tumbling", "rays_emitted": 10000, "triangles": 9884, "simulate": 2.0e6,
     "simulate_1thread": 1.5e6, "bare_embree": 2.0e7, "bare_embree_1thread": 1.2e7,
     "simulate_over_bare": 0.1, "simulate_over_bare_1thread": 0.125,
+    "bare_embree_packets": 3.2e7, "bare_embree_packets_1thread": 1.7e7,
+    "simulate_over_packets": 0.0625, "simulate_over_packets_1thread": 0.0875,
     "stages_1thread": {"ns_per_ray": {"pattern": 40, "poses": 30, "cull": 20, "cast": 20,
                                       "measurement": 60, "record": 10},
                        "pulses_after_cull": 0.16}}},
@@ -98,7 +100,9 @@ def test_cli_prints_the_benchmark(monkeypatch, as_json, with_suite):
     else:
         assert "envisat" in result.output and "1.50M" in result.output
         if with_suite:
-            for text in ("tumbling-risley", "2.00M", "0.12", "poses 30", "0.70 (Risley)",
+            for text in ("tumbling-risley", "2.00M", "0.12", "s/p) 0.09 (1t), 0.06 (2t)",
+                         "17.00M (1t)",
+                         "poses 30", "0.70 (Risley)",
                          "45.0 frames/s", "first frame: 0.80 s"):
                 assert text in result.output, text
 
@@ -122,6 +126,12 @@ def test_suite_scene_figures_are_consistent():
         else:
             assert math.isclose(scene[f"simulate_over_bare{suffix}"],
                                 scene[f"simulate{suffix}"] / bare)
+        packets = scene[f"bare_embree_packets{suffix}"]  # lidarsim's Embree binding
+        if packets is None:
+            assert scene[f"simulate_over_packets{suffix}"] is None
+        else:
+            assert math.isclose(scene[f"simulate_over_packets{suffix}"],
+                                scene[f"simulate{suffix}"] / packets)
 
 
 def test_suite_casts_every_sub_ray_and_both_targets():

@@ -13,6 +13,10 @@ interleaved rounds (:func:`lidarsim_core.bench.timing.interleaved_best`):
   lidarsim code around it, per emitted ray;
 * ``simulate_over_bare`` / ``simulate_over_bare_1thread``: their ratios (1 would be a
   simulation as fast as Embree alone on the same rays);
+* ``bare_embree_packets`` (``_1thread``) and ``simulate_over_packets`` (``_1thread``): the
+  same rays through the fastest call of lidarsim's Embree binding (packets of 16 rays where
+  the CPU traces them natively; :func:`lidarsim_core.bench.timing.packet_embree_probe`), and
+  the simulation over it;
 * ``stages_1thread``: nanoseconds per emitted ray of each stage on one thread (pattern, poses,
   cull, cast, measurement, record; :func:`suite_stages`).
 
@@ -31,7 +35,8 @@ import numpy as np
 from ..base.threads import worker_threads
 from ..pipeline.cast import process_piece, pulse_frames
 from .startup import bench_startup
-from .timing import bare_embree_probe, interleaved_best, threads_env, with_threads
+from .timing import (add_packet_columns, bare_embree_probe, interleaved_best,
+                     packet_embree_probe, threads_env, with_threads)
 
 #: Envisat's LVLH tumbling in 2013 (2.67 °/s about the orbit anti-normal), as in
 #: ``examples/scenarios/envisat_tumbling_hold.yaml``.
@@ -273,8 +278,12 @@ def bench_suite_scene(name: str, *, duration_s: float = 1.0, rounds: int = 5,
         "simulate": lambda: sim.run_frame(0),
         "simulate_1thread": threads_env(1, lambda: sim.run_frame(0)),
     }
-    for label, count in (("bare_embree_1thread", 1), ("bare_embree", threads)):
-        parts = [bare_embree_probe(mesh, o, d, count) for mesh, o, d in cast]
+    for label, count, probe in (
+            ("bare_embree_1thread", 1, bare_embree_probe),
+            ("bare_embree", threads, bare_embree_probe),
+            ("bare_embree_packets_1thread", 1, packet_embree_probe),
+            ("bare_embree_packets", threads, packet_embree_probe)):
+        parts = [probe(mesh, o, d, count) for mesh, o, d in cast]
         if all(p is not None for p in parts):
             probes[label] = lambda parts=parts: [p() for p in parts]
     best, cores = interleaved_best(probes, rounds)
@@ -292,6 +301,7 @@ def bench_suite_scene(name: str, *, duration_s: float = 1.0, rounds: int = 5,
         bare = result[f"bare_embree{suffix}"]
         result[f"simulate_over_bare{suffix}"] = \
             result[f"simulate{suffix}"] / bare if bare else None
+    add_packet_columns(result, rate)
     if stages:
         result["stages_1thread"] = suite_stages(sim, rounds=max(2, rounds // 2))
     return result

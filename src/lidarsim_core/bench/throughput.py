@@ -21,7 +21,9 @@ timed through:
 * ``stages_1thread``: nanoseconds per ray of each pipeline stage on one thread, and the
   fraction of pulses left after culling (:func:`pipeline_stages`).
 
-``machine.kernels`` says whether the compiled kernels ran (:mod:`lidarsim_core.kernels`).
+``machine.kernels`` says whether the compiled kernels ran (:mod:`lidarsim_core.kernels`);
+``machine.embree_binding`` what Embree library the binding loaded
+(:mod:`lidarsim_core.backends.embree4`).
 
 The cost of beam divergence (``divergence``): the demo scan with the link-budget detection
 model, once with K sub-rays per pulse (``sensor.beam``) and once with one ray per pulse over a
@@ -50,7 +52,8 @@ import numpy as np
 from .. import kernels
 from ..base.threads import worker_threads
 from ..pipeline.cast import body_rays, process_piece
-from .timing import bare_embree_probe, interleaved_best, threads_env, with_threads
+from .timing import (bare_embree_probe, binding_description, interleaved_best, threads_env,
+                     with_threads)
 
 #: Benchmark scenes: name → Envisat model detail, or detail and distance (default 30 m).
 SCENES: dict[str, str | dict[str, Any]] = {
@@ -278,6 +281,7 @@ def run_benchmark(*, quick: bool = False, scenes: dict[str, str] | None = None,
     machine = {"cpus": os.cpu_count(), "threads": worker_threads(),
                "python": platform.python_version(), "numpy": np.__version__,
                "embreex": embree_version, "kernels": kernels.describe(),
+               "embree_binding": binding_description(),
                "lidarsim": __version__,
                "processor": platform.processor() or platform.machine()}
     duration, rounds = (0.2, 3) if quick else (1.0, 12)

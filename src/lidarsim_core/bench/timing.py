@@ -1,5 +1,6 @@
 """Timing helpers of the benchmark: best of interleaved rounds, thread settings, and bare
-Embree on the same rays (the reference every pipeline figure is compared with)."""
+Embree on the same rays (the reference every pipeline figure is compared with), through
+embreex and through the fastest call of lidarsim's Embree binding (packets)."""
 
 from __future__ import annotations
 
@@ -10,6 +11,8 @@ from typing import Any, Callable
 
 import numpy as np
 
+from ..backends import embree4
+from ..base.errors import BackendError
 from ..base.threads import shared_pool
 from ..scene.mesh import Mesh
 
@@ -67,6 +70,58 @@ def bare_embree_probe(mesh: Mesh, origins: np.ndarray, directions: np.ndarray,
         list(pool.map(lambda b: scene.run(o32[b[0]:b[1]], d32[b[0]:b[1]]), bounds))
 
     return cast
+
+
+def packet_embree_probe(mesh: Mesh, origins: np.ndarray, directions: np.ndarray,
+                        threads: int) -> Callable[[], Any] | None:
+    """As :func:`bare_embree_probe`, through the fastest call of lidarsim's Embree binding
+    (:mod:`lidarsim_core.backends.embree4`): the same float32 rays, traced by the compiled
+    :func:`~lidarsim_core.kernels.embree_cast.cast_faces` in packets of the widest width the
+    CPU traces natively (None where the binding or numba is missing)."""
+    try:
+        library = embree4.load()
+        from ..kernels.embree_cast import cast_faces
+    except (BackendError, ImportError):
+        return None
+    scene = library.new_scene(np.ascontiguousarray(mesh.triangles, dtype=np.float32))
+    width, fields = library.packet_width, library.layout.fields
+    address = library.intersect[width]
+    o32 = np.ascontiguousarray(origins, dtype=np.float32)
+    d32 = np.ascontiguousarray(directions, dtype=np.float32)
+    out = np.empty(len(o32), dtype=np.int32)
+
+    def part(lo: int, hi: int) -> None:
+        cast_faces(address, scene.handle, width, fields, o32[lo:hi], d32[lo:hi], out[lo:hi])
+
+    n = len(o32)
+    if threads <= 1:
+        return lambda: part(0, n)
+    step = max(1024, -(-n // (2 * threads)))  # as bare_embree_probe
+    bounds = [(lo, min(lo + step, n)) for lo in range(0, n, step)]
+    pool = shared_pool(threads)
+    return lambda: list(pool.map(lambda b: part(*b), bounds))
+
+
+def binding_description() -> str:
+    """What lidarsim's Embree binding loaded (version, ``RTCRayHit`` size, packet width), or
+    why it did not."""
+    try:
+        library = embree4.load()
+    except BackendError as exc:
+        return f"not loaded: {exc}"
+    return (f"Embree {library.version_text}, {library.layout.nbytes(1)}-byte RTCRayHit, "
+            f"packets of {library.packet_width}")
+
+
+def add_packet_columns(result: dict[str, Any], rate: dict[str, float]) -> None:
+    """Add to a scene's ``result`` the packet cast's rays/s (``bare_embree_packets``,
+    ``bare_embree_packets_1thread``; None without the binding) and the simulation over it
+    (``simulate_over_packets``, ``simulate_over_packets_1thread``)."""
+    for suffix in ("", "_1thread"):
+        packets = rate.get(f"bare_embree_packets{suffix}")
+        result[f"bare_embree_packets{suffix}"] = packets
+        result[f"simulate_over_packets{suffix}"] = \
+            result[f"simulate{suffix}"] / packets if packets else None
 
 
 def with_threads(threads: int | None, func: Callable[[], Any]) -> Any:

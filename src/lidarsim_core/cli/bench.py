@@ -105,6 +105,12 @@ def _print_suite(console: Any, suite: dict[str, Any], threads: int) -> None:
     print_table(columns, rows, title="Realistic scenes: emitted rays per second (s/b: "
                                      "simulate over bare Embree)")
     for name, s in suite["scenes"].items():
+        if s.get("simulate_over_packets") is not None:  # lidarsim's Embree binding
+            console.print(f"{name}: bare Embree in packets through lidarsim's binding "
+                          f"{_rate(s.get('bare_embree_packets_1thread'))} (1t), "
+                          f"{_rate(s.get('bare_embree_packets'))} ({threads}t); simulate over "
+                          f"it (s/p) {_ratio(s.get('simulate_over_packets_1thread'))} (1t), "
+                          f"{_ratio(s['simulate_over_packets'])} ({threads}t)")
         stages = s.get("stages_1thread")
         if stages:
             parts = ", ".join(f"{k} {v:.0f}" for k, v in stages["ns_per_ray"].items())

@@ -18,6 +18,9 @@ loops instead:
   Lissajous directions;
 * :mod:`.poses`: per-ray rotations of the built-in trajectories (chains of rotations at
   constant rates: tumbling, constant angular velocity; the look-at attitude);
+* :mod:`.embree_cast`: Embree's ``rtcIntersect1``/``rtcIntersect4/8/16`` called by address
+  (the Embree backend passes the addresses and the scene at run time), with the float64
+  shift of each ray before it and the float64 distance refinement after it in the same loop;
 * :mod:`.cull`: a conservative test that skips pulses which cannot reach any target's
   bounding box, even after their angular error and beam divergence, before anything else is
   computed for them.
@@ -90,6 +93,7 @@ def _warm_up_calls() -> list[tuple[str, Callable[[], Any], Any]]:
     import numpy as np
 
     from .cull import cull_by_grid, cull_posed, direction_grid, motion_bound
+    from .embree_cast import cast_faces, cast_refined
     from .patterns import cycle_rays, lissajous_directions, spinning_directions
     from .philox import ray_uniforms
     from .poses import chain_matrices, look_at_matrices
@@ -128,6 +132,14 @@ def _warm_up_calls() -> list[tuple[str, Callable[[], Any], Any]]:
         ("refinement", lambda: refine_hits(np.full(1, -1, dtype=np.int32), one, one, one, one,
                                            1e-6, np.empty(1, dtype=np.int64), np.empty(1),
                                            np.empty((1, 3)), 0), refine_hits),
+        # no rays: compiled for the backend's argument types without calling Embree
+        ("embree cast", lambda: cast_refined(0, 0, 16, 21, one, one, np.zeros(3), 1.0, 1e-6,
+                                             one, one, np.empty(1, dtype=np.int64),
+                                             np.empty(1), np.empty((1, 3)), 0, 0),
+         cast_refined),
+        ("embree faces", lambda: cast_faces(0, 0, 16, 21, np.zeros((0, 3), np.float32),
+                                            np.zeros((0, 3), np.float32),
+                                            np.empty(0, dtype=np.int32)), cast_faces),
         ("cull per pulse", lambda: cull_posed(
             one, np.eye(3)[None], one, np.eye(3)[None], one, index,
             np.zeros(1, dtype=np.bool_), box, -box, np.full(1, -1, dtype=np.int64), index, 0.0),
