@@ -59,6 +59,30 @@ class LookAtAttitude(ComponentOptions):
         return look_at_matrices(positions, point, up)
 
 
+    def rate_bound(self, position: np.ndarray, speed: float, span: float) -> float | None:
+        """An upper bound on the body's angular speed (rad/s) while it stays within
+        ``speed · span`` of ``position`` (m) moving at most at ``speed`` (m/s); None near the
+        point or where the boresight comes near ``up`` (the law switches axes there).
+
+        The boresight ``x`` turns at most at ``speed / r`` (``r`` the distance to the point),
+        ``z = w / |w|`` with ``w = up - (up·x) x`` at most at ``2 |ẋ| / |w|``, and a frame's
+        angular speed is at most ``|ẋ| + |ż|`` (``ω = ½ Σ eᵢ × ėᵢ``, ``|ẏ| <= |ẋ| + |ż|``).
+        """
+        point, up = np.asarray(self.point_m, float), np.asarray(self.up, float)
+        up = up / np.linalg.norm(up)
+        offset = point - np.asarray(position, dtype=np.float64).reshape(3)
+        distance = float(np.linalg.norm(offset))
+        r_min = distance - speed * span
+        if not r_min > 1e-3 * max(1.0, distance):
+            return None
+        # |x(t) - x(mid)| <= speed·span / r_min, and |up × x| is 1-Lipschitz in x
+        w_min = float(np.linalg.norm(np.cross(up, offset / distance))) - speed * span / r_min
+        if not w_min > 1e-3:
+            return None
+        turn = speed / r_min
+        return turn * (1.0 + 2.0 / w_min)
+
+
 class FixedAttitude(ComponentOptions):
     """A constant body→scene rotation."""
 
@@ -84,6 +108,10 @@ class FixedAttitude(ComponentOptions):
         """The fixed rotation, once per position."""
         quat = self.rotation().as_quat()
         return Rotation.from_quat(np.tile(quat, (len(positions), 1)))
+
+    def rate_bound(self, position: np.ndarray, speed: float, span: float) -> float:
+        """The body does not turn: 0."""
+        return 0.0
 
     def matrices(self, positions: np.ndarray) -> np.ndarray:
         """The fixed rotation's matrix, once per position."""
