@@ -64,9 +64,11 @@ class LookAtAttitude(ComponentOptions):
         ``speed · span`` of ``position`` (m) moving at most at ``speed`` (m/s); None near the
         point or where the boresight comes near ``up`` (the law switches axes there).
 
-        The boresight ``x`` turns at most at ``speed / r`` (``r`` the distance to the point),
-        ``z = w / |w|`` with ``w = up - (up·x) x`` at most at ``2 |ẋ| / |w|``, and a frame's
-        angular speed is at most ``|ẋ| + |ż|`` (``ω = ½ Σ eᵢ × ėᵢ``, ``|ẏ| <= |ẋ| + |ż|``).
+        The boresight ``x`` turns at most at ``speed / r`` (``r`` the distance to the point).
+        The frame's angular velocity ``ω`` has ``x × ẋ`` across the boresight (norm ``|ẋ|``)
+        and the roll ``ω·x = −y·ż`` about it; with ``z = w / |w|``, ``w = up − (up·x) x``,
+        ``y·ż = y·ẇ / |w| = −(up·x)(y·ẋ) / |w|``, so ``|ω|² <= |ẋ|² (1 + (up·x)² / |w|²) =
+        |ẋ|² / |w|²`` (``|w|² = 1 − (up·x)²``): ``|ω| <= |ẋ| / |w|``.
         """
         point, up = np.asarray(self.point_m, float), np.asarray(self.up, float)
         up = up / np.linalg.norm(up)
@@ -79,8 +81,7 @@ class LookAtAttitude(ComponentOptions):
         w_min = float(np.linalg.norm(np.cross(up, offset / distance))) - speed * span / r_min
         if not w_min > 1e-3:
             return None
-        turn = speed / r_min
-        return turn * (1.0 + 2.0 / w_min)
+        return speed / r_min / w_min
 
 
 class FixedAttitude(ComponentOptions):
