@@ -211,13 +211,15 @@ def suite_stages(sim: Any, frame: int = 0, rounds: int = 3) -> dict[str, Any]:
     """Nanoseconds per emitted ray of each stage of ``frame`` on one thread, the whole frame
     as one piece (best of ``rounds``).
 
-    ``pattern``: the scan pattern's rays; ``poses``: the sensor's and targets' poses at every
-    ray (:func:`lidarsim_core.pipeline.posing.with_piece_poses`); ``cull``: which pulses may reach a
-    target; ``cast``: ``backend.cast`` of the remaining (sub-)rays on every target;
+    ``pattern``: the scan pattern's rays; ``poses``: the sensor's and targets' poses at the
+    pulses kept by the cull (at every pulse when a trajectory gives no rate bounds;
+    :func:`lidarsim_core.pipeline.posing.with_piece_poses`); ``cull``: which pulses may reach
+    a target (:func:`lidarsim_core.pipeline.cull.culled_with_poses`); ``cast``: ``backend.cast`` of the remaining (sub-)rays on every target;
     ``measurement``: the rest of the per-pulse work (angular error, frame changes, returns,
     detection, range error, the record's columns); ``record``: assembling the point cloud
     and its metadata.
     """
+    from ..pipeline.cull import culled_with_poses
     from ..pipeline.posing import with_piece_poses
     from ..records.pointcloud import PointCloud
 
@@ -227,8 +229,13 @@ def suite_stages(sim: Any, frame: int = 0, rounds: int = 3) -> dict[str, Any]:
     contexts = sim.context.noise_contexts(frame)
     index = np.arange(k0, k1, dtype=np.int64)
     batch = sim.pattern.rays_for_indices(index)
+    kept = culled_with_poses(sim.context, sim.culler, batch, t_frame)
+    # the pipeline's order: cull on the pattern's rays, then pose the pulses kept (or, for
+    # trajectories without rate bounds, pose every pulse and cull on the posed batch)
+    early = None if sim.culler is None else sim.culler.keep_before_poses(sim.context, batch,
+                                                                        t_frame)
+    to_pose = batch if early is None else batch.take(early)
     posed = with_piece_poses(sim.context, batch, t_frame)
-    kept = posed if sim.culler is None else posed.take(sim.culler.keep(sim.context, posed, t_frame))
     _, _, bodies, _ = pulse_frames(sim.context, kept, contexts, t_frame)
     rays = []
     for target, (origin, vecs) in zip(sim.targets, bodies):
@@ -240,8 +247,10 @@ def suite_stages(sim: Any, frame: int = 0, rounds: int = 3) -> dict[str, Any]:
 
     probes = {
         "pattern": lambda: sim.pattern.rays_for_indices(index),
-        "poses": lambda: with_piece_poses(sim.context, batch, t_frame),
-        "cull": lambda: None if sim.culler is None else sim.culler.keep(sim.context, posed, t_frame),
+        "poses": lambda: with_piece_poses(sim.context, to_pose, t_frame),
+        "cull": lambda: None if sim.culler is None else (
+            sim.culler.keep(sim.context, posed, t_frame) if early is None else
+            sim.culler.keep_before_poses(sim.context, batch, t_frame)),
         "cast": lambda: [sim.backend.cast(mesh, o, d) for mesh, o, d in rays],
         "process": lambda: process_piece(sim.context, sim.stages, kept, contexts, t_frame, frame),
         "record": lambda: PointCloud.concatenate([columns], sim.frame_info(frame)),
