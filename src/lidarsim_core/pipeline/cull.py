@@ -27,6 +27,13 @@ tenth of it, each pulse's nominal ray is tested against the box tree in each tar
 at its own pose instead (:func:`lidarsim_core.kernels.cull.cull_posed`). The tests run scans
 with and without culling and compare every column.
 
+When every trajectory bounds its own motion (:meth:`~lidarsim_core.trajectories.base.Trajectory.
+motion_rates`), the cull runs before the pulses are posed (:meth:`PulseCuller.keep_before_poses`,
+:func:`culled_with_poses`): the motion within a piece is bounded from those rates and one pose
+at the piece's middle time, targets that stray by at most a tenth of their size share one
+cube map, faster ones get a cone of directions per block of :data:`CONE_BLOCK` pulses, and
+only the kept pulses are posed (a pose is a function of its pulse's time alone: the same bits).
+
 Culling is used when the compiled kernels are (:mod:`lidarsim_core.kernels`) and every
 ray-stage noise model describes itself through
 :meth:`~lidarsim_core.noise.base.NoiseModel.ray_rotation`; not with false-alarm models, which
