@@ -193,3 +193,57 @@ def test_subclasses_that_redefine_poses_give_no_rate_bounds():
 
     wobbly = Wobbly.from_config({"velocity_m_s": [1, 0, 0]})
     assert motion_rates(wobbly, 0.0, 1.0) is None
+
+
+def test_spinning_groups_cover_the_range_and_stay_within_their_angle():
+    """Every ray of a spinning pattern's direction group is within the group's angle of its
+    representative (directions computed exactly), and the groups partition the indices."""
+    sim = Simulation(scenario_from_dict(_suite("vlp16-circling-15m", 0.3)))
+    pattern = sim.pattern
+    for first, count in ((0, 65536), (12345, 7777), (3, 1)):
+        index = np.arange(first, first + count)
+        grouped = pattern.direction_groups(index)
+        everything = grouped.members(np.arange(len(grouped.representative)))
+        np.testing.assert_array_equal(everything, index)
+        directions = pattern.rays_for_indices(index).direction
+        reps = pattern.rays_for_indices(grouped.representative).direction
+        worst = 0.0
+        for g in range(len(grouped.representative)):
+            rows = grouped.members(np.array([g])) - first
+            cosine = np.clip(directions[rows] @ reps[g], -1, 1)
+            worst = max(worst, float(np.arccos(cosine).max()))
+        assert worst <= grouped.angle
+        if count > 10_000:
+            assert worst > 0.8 * grouped.angle  # the bound is near what the head turns
+
+
+def test_a_spinning_pattern_is_culled_by_groups_before_its_directions(monkeypatch):
+    """The VLP-16 circling Envisat: only the groups whose representative passes the widened
+    cull are computed, every pulse that hits is among them, and the points are those of
+    casting every pulse."""
+    from lidarsim_core.pipeline import cull
+
+    sim = Simulation(scenario_from_dict(_suite("vlp16-circling-15m", 0.3)))
+    ctx = sim.context
+    k0, k1 = sim.frame_rays(0)
+    index = np.arange(k0, k1)
+    computed = []
+    original = type(sim.pattern).rays_for_indices
+
+    def spy(self, rows):
+        computed.append(len(rows))
+        return original(self, rows)
+
+    monkeypatch.setattr(type(sim.pattern), "rays_for_indices", spy)
+    kept = cull.culled_piece(ctx, sim.culler, index, 0.0)
+    assert sum(computed) < 0.25 * len(index)  # representatives and the groups kept
+    posed = with_piece_poses(ctx, original(sim.pattern, index), 0.0)
+    columns = process_piece(ctx, sim.stages, posed, ctx.noise_contexts(0), 0.0, 0)
+    hit = np.unique(columns["ray_index"])
+    assert len(hit) > 200 and np.isin(hit, kept.index).all()
+    monkeypatch.setattr(type(sim.pattern), "rays_for_indices", original)
+    culled = sim.run_frame(0)
+    sim.culler = None
+    every_pulse = sim.run_frame(0)
+    for name, column in every_pulse.columns.items():
+        np.testing.assert_array_equal(culled[name], column, err_msg=name)

@@ -92,6 +92,18 @@ class PulseCuller:
     #: Cube maps of reachable directions by pose (:meth:`keep`), newest last.
     _grids: dict[bytes, np.ndarray | None] = field(default_factory=dict, compare=False,
                                                    repr=False)
+    #: Plans with a wider margin, by the extra angle (:meth:`widened`).
+    _wider: dict[float, "PulseCuller"] = field(default_factory=dict, compare=False,
+                                               repr=False)
+
+    def widened(self, angle: float) -> "PulseCuller":
+        """This plan with its margin grown by ``angle`` (rad): the culler of directions that
+        stand for every direction within ``angle`` of them (cached)."""
+        with _grids_lock:
+            wider = self._wider.get(angle)
+            if wider is None:
+                wider = self._wider[angle] = PulseCuller(self.margin_rad + angle)
+        return wider
 
     @classmethod
     def for_context(cls, ctx: RunContext) -> "PulseCuller | None":
@@ -140,7 +152,8 @@ class PulseCuller:
             return np.arange(len(batch), dtype=np.int64)
         return cull_by_grid(directions, grid)
 
-    def keep_before_poses(self, ctx: RunContext, batch: RayBatch, t_frame: float
+    def keep_before_poses(self, ctx: RunContext, batch: RayBatch, t_frame: float,
+                          span: tuple[float, float] | None = None, groups: bool = False
                           ) -> np.ndarray | None:
         """Rows of ``batch`` (without poses) that may reach a target, from a few poses per
         piece and the trajectories' rate bounds instead of a pose per pulse; None when a
@@ -158,16 +171,22 @@ class PulseCuller:
         :data:`CONE_BLOCK` pulses: the directions within the pulse margin of its bounding
         sphere, grown by how far it strays within the block, as seen at the block's middle
         time.
+
+        ``span`` replaces the batch's time span (its rays then stand for groups of pulses
+        emitted within it, :func:`culled_piece`), and with ``groups`` a target that needs
+        cones gives None (the cones' blocks are made of pulses).
         """
         from ..kernels.cull import cull_by_grid_cones
 
         n = len(batch)
         trajectories = [ctx.sensor_trajectory] + [target.trajectory for target in ctx.targets]
-        if n == 0 or ctx.scenario.scan.motion == "frozen" or \
+        if n == 0:
+            return np.arange(0, dtype=np.int64)
+        if ctx.scenario.scan.motion == "frozen" or \
                 all(tr.is_static for tr in trajectories):
             return self.keep(ctx, batch, t_frame)  # one pose each: no per-pulse poses either
         t = batch.t
-        t0, t1 = float(t.min()), float(t.max())
+        t0, t1 = (float(t.min()), float(t.max())) if span is None else span
         rates = [motion_rates(tr, t0, t1) for tr in trajectories]
         if any(r is None for r in rates):
             return None
@@ -191,6 +210,8 @@ class PulseCuller:
             if moved <= 0.1 * float(np.linalg.norm(hi - lo)):
                 grid_targets.append((k, posed))
                 motion.append(moved)
+            elif groups:
+                return None
             else:
                 cone_targets.append(k)
         grid = np.zeros((6, 1, 1), dtype=np.uint8)
@@ -380,6 +401,39 @@ def _strays(turn_s: float, speed_s: float, turn_t: float, speed_t: float,
     moved = (turn_s + turn_t) * span * reach + (speed_s + speed_t) * span + \
         turn_s * span * distance
     return moved * (1.0 + 1e-9) + 1e-9 + 1e-12 * (reach + distance)
+
+
+def culled_piece(ctx: RunContext, culler: "PulseCuller | None", index: np.ndarray,
+                 t_frame: float) -> RayBatch:
+    """The rays of the pulses ``index`` (ascending, consecutive) that may reach a target, with
+    their poses (:func:`culled_with_poses`). When the pattern groups its rays by direction
+    (:meth:`~lidarsim_core.patterns.base.ScanPattern.direction_groups`: every ray of a group
+    within an angle of its representative), only the groups whose representative passes the
+    cull with the margin grown by that angle are computed, over the piece's time span."""
+    pattern = ctx.pattern
+    grouped = None
+    if culler is not None and len(index) and _defines(pattern, "direction_groups",
+                                                      "rays_for_indices"):
+        grouped = pattern.direction_groups(index)
+    if grouped is not None:
+        ends = pattern.time_of_index(index[[0, -1]])  # emitted in the order of the indices
+        kept = culler.widened(grouped.angle).keep_before_poses(
+            ctx, pattern.rays_for_indices(grouped.representative), t_frame,
+            span=(float(ends.min()), float(ends.max())), groups=True)
+        if kept is not None:
+            index = grouped.members(kept)
+    return culled_with_poses(ctx, culler, pattern.rays_for_indices(index), t_frame)
+
+
+def _defines(obj: object, name: str, under: str) -> bool:
+    """Whether ``obj``'s class defines ``name`` in the class that defines ``under`` or below
+    it (a subclass that redefines ``under`` alone would break ``name``'s promise)."""
+    mro = type(obj).__mro__
+
+    def position(attribute: str) -> int:
+        return next((i for i, k in enumerate(mro) if attribute in vars(k)), len(mro))
+
+    return position(name) <= position(under)
 
 
 def culled_with_poses(ctx: RunContext, culler: "PulseCuller | None", batch: RayBatch,

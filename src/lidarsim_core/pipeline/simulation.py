@@ -64,7 +64,7 @@ from ..scene.materials import Material, MaterialTable, material_library, part_ma
 from .budget import check_simulation
 from .cast import process_piece
 from .context import RunContext, Target
-from .cull import PulseCuller, culled_with_poses
+from .cull import PulseCuller, culled_piece
 from .frameinfo import frame_infos
 from .inside import check_sensor_outside
 from .stages import Stage, measurement_stages
@@ -190,9 +190,9 @@ class Simulation:
                   for lo, hi in split_range(start, stop, piece_pulses)]
 
         def work(piece: tuple[int, int, int]) -> dict[str, np.ndarray]:
-            batch = ctx.pattern.rays_for_indices(np.arange(piece[1], piece[2], dtype=np.int64))
-            # only pulses that may reach a target go on, with their poses
-            batch = culled_with_poses(ctx, self.culler, batch, t_frame)
+            # only pulses that may reach a target go on, with their rays and poses
+            batch = culled_piece(ctx, self.culler,
+                                 np.arange(piece[1], piece[2], dtype=np.int64), t_frame)
             return process_piece(ctx, self.stages, batch, contexts, t_frame, frame)
 
         def merged(parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:

@@ -14,6 +14,7 @@ Two laws, chosen with ``mode``:
 
 from __future__ import annotations
 
+import math
 from typing import Annotated, Any, Literal, Union
 
 import numpy as np
@@ -70,15 +71,18 @@ class LookAtAttitude(ComponentOptions):
         ``y·ż = y·ẇ / |w| = −(up·x)(y·ẋ) / |w|``, so ``|ω|² <= |ẋ|² (1 + (up·x)² / |w|²) =
         |ẋ|² / |w|²`` (``|w|² = 1 − (up·x)²``): ``|ω| <= |ẋ| / |w|``.
         """
-        point, up = np.asarray(self.point_m, float), np.asarray(self.up, float)
-        up = up / np.linalg.norm(up)
-        offset = point - np.asarray(position, dtype=np.float64).reshape(3)
-        distance = float(np.linalg.norm(offset))
+        ux, uy, uz = self.up
+        norm = math.sqrt(ux * ux + uy * uy + uz * uz)
+        ux, uy, uz = ux / norm, uy / norm, uz / norm
+        px, py, pz = (float(v) for v in np.asarray(position, dtype=np.float64).reshape(3))
+        ox, oy, oz = self.point_m[0] - px, self.point_m[1] - py, self.point_m[2] - pz
+        distance = math.sqrt(ox * ox + oy * oy + oz * oz)
         r_min = distance - speed * span
         if not r_min > 1e-3 * max(1.0, distance):
             return None
         # |x(t) - x(mid)| <= speed·span / r_min, and |up × x| is 1-Lipschitz in x
-        w_min = float(np.linalg.norm(np.cross(up, offset / distance))) - speed * span / r_min
+        cx, cy, cz = uy * oz - uz * oy, uz * ox - ux * oz, ux * oy - uy * ox
+        w_min = math.sqrt(cx * cx + cy * cy + cz * cz) / distance - speed * span / r_min
         if not w_min > 1e-3:
             return None
         return speed / r_min / w_min
