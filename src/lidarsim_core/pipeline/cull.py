@@ -55,7 +55,7 @@ from .. import kernels
 from ..geometry.posing import PoseMatrices
 from ..noise.outliers import SpuriousReturnModel
 from ..noise.rng import MAX_ABS_NORMAL
-from ..patterns.base import RayBatch
+from ..patterns.base import DirectionGroups, RayBatch
 from ..scene.mesh import Mesh
 from ..trajectories.matrices import motion_rates
 from .context import RunContext
@@ -406,23 +406,35 @@ def _strays(turn_s: float, speed_s: float, turn_t: float, speed_t: float,
 def culled_piece(ctx: RunContext, culler: "PulseCuller | None", index: np.ndarray,
                  t_frame: float) -> RayBatch:
     """The rays of the pulses ``index`` (ascending, consecutive) that may reach a target, with
-    their poses (:func:`culled_with_poses`). When the pattern groups its rays by direction
+    their poses: the rays of :func:`pattern_candidates` only, culled and posed by
+    :func:`culled_with_poses`."""
+    candidates = pattern_candidates(ctx, culler, index, t_frame)
+    return culled_with_poses(ctx, culler, ctx.pattern.rays_for_indices(candidates), t_frame)
+
+
+def pattern_candidates(ctx: RunContext, culler: "PulseCuller | None", index: np.ndarray,
+                       t_frame: float, grouped: "DirectionGroups | None" = None,
+                       representatives: RayBatch | None = None) -> np.ndarray:
+    """The pulses of ``index`` (ascending, consecutive) whose rays are to be computed. When
+    the pattern groups its rays by direction
     (:meth:`~lidarsim_core.patterns.base.ScanPattern.direction_groups`: every ray of a group
-    within an angle of its representative), only the groups whose representative passes the
-    cull with the margin grown by that angle are computed, over the piece's time span."""
+    within an angle of its representative), the pulses of the groups whose representative
+    passes the cull with the margin grown by that angle, over the piece's time span; else
+    every pulse. ``grouped`` and ``representatives`` may pass the groups and their rays
+    when already computed."""
     pattern = ctx.pattern
-    grouped = None
-    if culler is not None and len(index) and _defines(pattern, "direction_groups",
-                                                      "rays_for_indices"):
+    if grouped is None and culler is not None and len(index) and \
+            _defines(pattern, "direction_groups", "rays_for_indices"):
         grouped = pattern.direction_groups(index)
-    if grouped is not None:
-        ends = pattern.time_of_index(index[[0, -1]])  # emitted in the order of the indices
-        kept = culler.widened(grouped.angle).keep_before_poses(
-            ctx, pattern.rays_for_indices(grouped.representative), t_frame,
-            span=(float(ends.min()), float(ends.max())), groups=True)
-        if kept is not None:
-            index = grouped.members(kept)
-    return culled_with_poses(ctx, culler, pattern.rays_for_indices(index), t_frame)
+    if grouped is None:
+        return index
+    if representatives is None:
+        representatives = pattern.rays_for_indices(grouped.representative)
+    ends = pattern.time_of_index(index[[0, -1]])  # emitted in the order of the indices
+    kept = culler.widened(grouped.angle).keep_before_poses(
+        ctx, representatives, t_frame, span=(float(ends.min()), float(ends.max())),
+        groups=True)
+    return index if kept is None else grouped.members(kept)
 
 
 def _defines(obj: object, name: str, under: str) -> bool:
