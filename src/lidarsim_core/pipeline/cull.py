@@ -193,7 +193,7 @@ class PulseCuller:
         (turn_s, speed_s), target_rates = rates[0], rates[1:]
         trees = [cull_tree(target.mesh) for target in ctx.targets]
         middle = 0.5 * (t0 + t1)
-        span = max(middle - t0, t1 - middle) * (1.0 + 1e-12)
+        half = max(middle - t0, t1 - middle) * (1.0 + 1e-12)
 
         def pose(trajectory, times: np.ndarray) -> PoseMatrices:  # noqa: ANN001
             return ctx.trajectory_poses(trajectory, times, t_frame).full(len(times))
@@ -205,7 +205,7 @@ class PulseCuller:
                 zip(ctx.targets, trees, target_rates)):
             lo, hi = tree[0][0], tree[1][0]
             posed = pose(target.trajectory, at_middle)
-            moved = _strays(turn_s, speed_s, turn_t, speed_t, span, _reach(lo, hi),
+            moved = _strays(turn_s, speed_s, turn_t, speed_t, half, _reach(lo, hi),
                             float(np.linalg.norm(posed.position[0] - sensor.position[0])))
             if moved <= 0.1 * float(np.linalg.norm(hi - lo)):
                 grid_targets.append((k, posed))
