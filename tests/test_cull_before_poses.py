@@ -44,7 +44,18 @@ def _approach_two_targets() -> dict:
     return data
 
 
+def _keyframe_chaser() -> dict:
+    """A chaser on cubic keyframes looking at a tumbling Envisat."""
+    data = _suite("tumbling-rose", 0.3)
+    data["sensor"]["trajectory"] = {"kind": "keyframes", "attitude": {"point_m": [0, 0, 0]},
+                                    "keyframes": [{"t_s": 0, "position_m": [0, 30, 0]},
+                                                  {"t_s": 0.4, "position_m": [1, 29, 1]},
+                                                  {"t_s": 2, "position_m": [3, 25, 0]}]}
+    return data
+
+
 SCENES = {
+    "keyframe-chaser": _keyframe_chaser,
     "tumbling-hold-risley": lambda: _suite("tumbling-risley", 0.3),
     "tumbling-fixed-rose": lambda: _suite("tumbling-fixed-rose", 0.3),
     "flyaround-risley": lambda: _suite("flyaround-50m", 0.3),
@@ -148,6 +159,15 @@ RATED = {
                                            "speed_m_s": 0.4},
                                           {"type": "hold", "duration_s": 50}],
                              "attitude": {"point_m": [0, 0, 0], "up": [0, 0, 1]}}),
+    "keyframes-cubic-slerp": ("keyframes", {"keyframes": [
+        {"t_s": 0, "position_m": [0, 0, 0], "euler_deg": [0, 0, 0]},
+        {"t_s": 40, "position_m": [5, 2, -1], "euler_deg": [30, 10, 0]},
+        {"t_s": 90, "position_m": [6, -3, 2], "euler_deg": [30, 80, -40]},
+        {"t_s": 200, "position_m": [0, 1, 0], "euler_deg": [0, 0, 10]}]}),
+    "keyframes-linear-look-at": ("keyframes", {
+        "position_interpolation": "linear", "attitude": {"point_m": [0, 0, 0]},
+        "keyframes": [{"t_s": 0, "position_m": [30, 0, 5]}, {"t_s": 100, "position_m": [0, 25, 3]},
+                      {"t_s": 250, "position_m": [-20, 5, 0]}]}),
 }
 
 
