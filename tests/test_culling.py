@@ -198,7 +198,14 @@ def _spinning_far() -> dict:
     return data
 
 
+def _posed_path_only(monkeypatch):
+    """Cull on the posed batch (:meth:`PulseCuller.keep`), as for trajectories without rate
+    bounds."""
+    monkeypatch.setattr(PulseCuller, "keep_before_poses", lambda self, *args: None)
+
+
 def test_moving_grid_is_used_and_its_motion_growth_is_needed(monkeypatch):
+    _posed_path_only(monkeypatch)
     sim = Simulation(scenario_from_dict(_spinning_far()))
     used = []
     original = PulseCuller._moving_grid
@@ -220,6 +227,36 @@ def test_moving_grid_is_used_and_its_motion_growth_is_needed(monkeypatch):
     import lidarsim_core.kernels.cull as kernel_cull
 
     monkeypatch.setattr(kernel_cull, "motion_bound", lambda *args: 0.0)
+    sim.culler = culler
+    culler._grids.clear()
+    assert len(sim.run_frame(0, chunk_rays=1_000_000)) < len(every_pulse)
+
+
+def test_culling_before_poses_grows_the_map_by_the_rate_bounds(monkeypatch):
+    """The spinning Envisat culled from its rate bounds alone (no pose per pulse): one cube
+    map per piece, the points those of casting every pulse, and without the growth by the
+    motion pulses that hit are lost."""
+    from lidarsim_core.pipeline import cull
+
+    sim = Simulation(scenario_from_dict(_spinning_far()))
+    decided = []
+    original = PulseCuller.keep_before_poses
+
+    def spy(self, *args):
+        rows = original(self, *args)
+        decided.append(rows is not None)
+        return rows
+
+    monkeypatch.setattr(PulseCuller, "keep_before_poses", spy)
+    monkeypatch.setattr(PulseCuller, "_moving_grid", None)  # the posed path is not taken
+    monkeypatch.setenv("LIDARSIM_THREADS", "1")
+    culled = sim.run_frame(0, chunk_rays=1_000_000)
+    assert decided and all(decided)
+    sim.culler, culler = None, sim.culler
+    every_pulse = sim.run_frame(0, chunk_rays=1_000_000)
+    for name, column in every_pulse.columns.items():
+        np.testing.assert_array_equal(culled[name], column, err_msg=name)
+    monkeypatch.setattr(cull, "_strays", lambda *args: 0.0)
     sim.culler = culler
     culler._grids.clear()
     assert len(sim.run_frame(0, chunk_rays=1_000_000)) < len(every_pulse)
@@ -255,6 +292,7 @@ def test_fast_targets_get_a_cube_map_per_block(monkeypatch):
     motion allows, and nothing changes."""
     from lidarsim_core.pipeline import cull
 
+    _posed_path_only(monkeypatch)
     sim = Simulation(_suite("two-targets", 0.3))
     blocks = []
     original = PulseCuller._moving_blocks

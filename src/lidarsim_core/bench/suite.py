@@ -216,13 +216,16 @@ def suite_stages(sim: Any, frame: int = 0, rounds: int = 3) -> dict[str, Any]:
     """Nanoseconds per emitted ray of each stage of ``frame`` on one thread, the whole frame
     as one piece (best of ``rounds``).
 
-    ``pattern``: the scan pattern's rays; ``poses``: the sensor's and targets' poses at every
-    ray (:func:`lidarsim_core.pipeline.posing.with_piece_poses`); ``cull``: which pulses may reach a
-    target; ``cast``: ``backend.cast`` of the remaining (sub-)rays on every target;
+    ``pattern``: the scan pattern's rays (for a pattern that groups its rays by direction,
+    the groups, their representatives and the rays of the groups kept); ``poses``: the sensor's and targets' poses at the
+    pulses kept by the cull (at every pulse when a trajectory gives no rate bounds;
+    :func:`lidarsim_core.pipeline.posing.with_piece_poses`); ``cull``: which pulses may reach
+    a target (:func:`lidarsim_core.pipeline.cull.culled_with_poses`); ``cast``: ``backend.cast`` of the remaining (sub-)rays on every target;
     ``measurement``: the rest of the per-pulse work (angular error, frame changes, returns,
     detection, range error, the record's columns); ``record``: assembling the point cloud
     and its metadata.
     """
+    from ..pipeline.cull import culled_with_poses, pattern_candidates
     from ..pipeline.posing import with_piece_poses
     from ..records.pointcloud import PointCloud
 
@@ -231,9 +234,21 @@ def suite_stages(sim: Any, frame: int = 0, rounds: int = 3) -> dict[str, Any]:
     t_frame = sim.scenario.scan.frame_interval(frame)[0]
     contexts = sim.context.noise_contexts(frame)
     index = np.arange(k0, k1, dtype=np.int64)
-    batch = sim.pattern.rays_for_indices(index)
+    # a pattern that groups its rays by direction computes the groups' representatives and
+    # then the rays of the groups that may reach a target only
+    grouped = None if sim.culler is None else sim.pattern.direction_groups(index)
+    representatives = None if grouped is None else \
+        sim.pattern.rays_for_indices(grouped.representative)
+    candidates = pattern_candidates(sim.context, sim.culler, index, t_frame, grouped,
+                                    representatives)
+    batch = sim.pattern.rays_for_indices(candidates)
+    kept = culled_with_poses(sim.context, sim.culler, batch, t_frame)
+    # the pipeline's order: cull on the pattern's rays, then pose the pulses kept (or, for
+    # trajectories without rate bounds, pose every pulse and cull on the posed batch)
+    early = None if sim.culler is None else sim.culler.keep_before_poses(sim.context, batch,
+                                                                        t_frame)
+    to_pose = batch if early is None else batch.take(early)
     posed = with_piece_poses(sim.context, batch, t_frame)
-    kept = posed if sim.culler is None else posed.take(sim.culler.keep(sim.context, posed, t_frame))
     _, _, bodies, _ = pulse_frames(sim.context, kept, contexts, t_frame)
     rays = []
     for target, (origin, vecs) in zip(sim.targets, bodies):
@@ -244,9 +259,16 @@ def suite_stages(sim: Any, frame: int = 0, rounds: int = 3) -> dict[str, Any]:
     columns = process_piece(sim.context, sim.stages, kept, contexts, t_frame, frame)
 
     probes = {
-        "pattern": lambda: sim.pattern.rays_for_indices(index),
-        "poses": lambda: with_piece_poses(sim.context, batch, t_frame),
-        "cull": lambda: None if sim.culler is None else sim.culler.keep(sim.context, posed, t_frame),
+        "pattern": lambda: sim.pattern.rays_for_indices(index) if grouped is None else (
+            sim.pattern.direction_groups(index),
+            sim.pattern.rays_for_indices(grouped.representative),
+            sim.pattern.rays_for_indices(candidates)),
+        "poses": lambda: with_piece_poses(sim.context, to_pose, t_frame),
+        "cull": lambda: None if sim.culler is None else (
+            None if grouped is None else pattern_candidates(
+                sim.context, sim.culler, index, t_frame, grouped, representatives),
+            sim.culler.keep(sim.context, posed, t_frame) if early is None else
+            sim.culler.keep_before_poses(sim.context, batch, t_frame)),
         "cast": lambda: [sim.backend.cast(mesh, o, d) for mesh, o, d in rays],
         "process": lambda: process_piece(sim.context, sim.stages, kept, contexts, t_frame, frame),
         "record": lambda: PointCloud.concatenate([columns], sim.frame_info(frame)),

@@ -150,6 +150,12 @@ class RotationChain:
                    np.ascontiguousarray(np.reshape(axes, (-1, 3)), dtype=np.float64),
                    np.asarray(rates, dtype=np.float64))
 
+    @property
+    def rate_bound(self) -> float:
+        """An upper bound on the chain's angular speed (rad/s): its angular velocity is the
+        sum of each link's rate about its (turned) axis, so at most ``Σ |wk|``."""
+        return float(np.abs(self.rates).sum())
+
     def matrices(self, tau: np.ndarray) -> np.ndarray:
         """(N, 3, 3) rotation matrices at ``tau`` (N,) seconds."""
         tau = np.ascontiguousarray(tau, dtype=np.float64)

@@ -92,7 +92,7 @@ def _warm_up_calls() -> list[tuple[str, Callable[[], Any], Any]]:
     passes."""
     import numpy as np
 
-    from .cull import cull_by_grid, cull_posed, direction_grid, motion_bound
+    from .cull import cull_by_grid, cull_by_grid_cones, cull_posed, direction_grid, motion_bound
     from .embree_cast import cast_faces, cast_refined
     from .patterns import cycle_rays, lissajous_directions, spinning_directions
     from .philox import ray_uniforms
@@ -149,6 +149,9 @@ def _warm_up_calls() -> list[tuple[str, Callable[[], Any], Any]]:
         ("cube map", lambda: direction_grid(corners, 4), direction_grid),
         ("cube map lookup", lambda: cull_by_grid(one, np.ones((6, 4, 4), dtype=np.uint8)),
          cull_by_grid),
+        ("cube map and cones", lambda: cull_by_grid_cones(
+            one, np.ones((6, 4, 4), dtype=np.uint8), True, 1, np.ones((1, 1, 3)),
+            np.ones((1, 1))), cull_by_grid_cones),
         ("rotation chains", lambda: chain_matrices(np.zeros(1),
                                                    np.array([[0.0, 0.0, 0.0, 1.0]] * 2), one,
                                                    np.ones(1)), chain_matrices),

@@ -293,3 +293,51 @@ def motion_bound(sensor_rotation, sensor_position, rotation, position, reference
         worst_rotation = max(worst_rotation, frob)
         worst_shift = max(worst_shift, shift)
     return math.sqrt(worst_rotation) * reach + math.sqrt(worst_shift)
+
+
+@njit(nogil=True, cache=True)
+def cull_by_grid_cones(directions, grid, use_grid, block, axes, cosines):  # noqa: ANN001, ANN201
+    """Indices of the directions whose cell of :func:`direction_grid`'s cube map is set (when
+    ``use_grid``) or that lie within one of their block's cones.
+
+    Pulse ``i`` belongs to block ``i // block``; ``axes`` (blocks, K, 3) are unit cone axes
+    and ``cosines`` (blocks, K) the cosines of their half angles (a direction ``d`` is within
+    a cone when ``d · axis >= cosine · |d|``).
+    """
+    n = directions.shape[0]
+    cells = grid.shape[1]
+    half = cells / 2.0
+    keep = np.empty(n, dtype=np.int64)
+    kept = 0
+    cones = axes.shape[1]
+    for i in range(n):
+        x, y, z = directions[i, 0], directions[i, 1], directions[i, 2]
+        if use_grid:
+            ax, ay, az = abs(x), abs(y), abs(z)
+            if ax >= ay and ax >= az:
+                face, depth, u, v = (0 if x > 0 else 1), ax, y, z
+            elif ay >= az:
+                face, depth, u, v = (2 if y > 0 else 3), ay, z, x
+            else:
+                face, depth, u, v = (4 if z > 0 else 5), az, x, y
+            if depth == 0.0:  # not a direction: keep it, the exact path decides
+                keep[kept] = i
+                kept += 1
+                continue
+            ci = min(max(int(math.floor((u / depth + 1.0) * half)), 0), cells - 1)
+            cj = min(max(int(math.floor((v / depth + 1.0) * half)), 0), cells - 1)
+            if grid[face, ci, cj]:
+                keep[kept] = i
+                kept += 1
+                continue
+        if cones == 0:
+            continue
+        b = i // block
+        norm = math.sqrt(x * x + y * y + z * z)
+        for k in range(cones):
+            if x * axes[b, k, 0] + y * axes[b, k, 1] + z * axes[b, k, 2] >= \
+                    cosines[b, k] * norm:
+                keep[kept] = i
+                kept += 1
+                break
+    return keep[:kept]

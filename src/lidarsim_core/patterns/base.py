@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from abc import abstractmethod
 from dataclasses import dataclass, field
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping
 
 import numpy as np
 
@@ -52,6 +52,27 @@ class RayBatch:
         """The rays at ``rows`` (indices into this batch)."""
         return RayBatch(self.index[rows], self.t[rows], self.direction[rows], self.channel[rows],
                         None if self.poses is None else self.poses.take(rows))
+
+
+@dataclass(frozen=True)
+class DirectionGroups:
+    """Rays grouped by direction (:meth:`ScanPattern.direction_groups`): every ray of group
+    ``g`` is within ``angle`` (rad) of the ray ``representative[g]``.
+
+    Attributes
+    ----------
+    representative
+        (G,) the index of one ray of each group.
+    angle
+        The largest angle (rad) between a ray and its group's representative.
+    members
+        ``members(groups)``: the indices (ascending) of the rays of the groups ``groups``
+        (ascending positions in ``representative``).
+    """
+
+    representative: np.ndarray
+    angle: float
+    members: Callable[[np.ndarray], np.ndarray]
 
 
 class ScanPattern(Component):
@@ -134,6 +155,15 @@ class ScanPattern(Component):
     def max_off_axis_rad(self) -> float:
         """Largest angle from the boresight any ray can have (for FOV checks)."""
         return math.hypot(self.sensor.half_fov_h_rad, self.sensor.half_fov_v_rad)
+
+    def direction_groups(self, index: np.ndarray) -> "DirectionGroups | None":
+        """Groups of the rays ``index`` (ascending, consecutive) that each stay near one of
+        their rays, for culling before the directions are computed; None when the pattern
+        gives no such bound (the default; :mod:`lidarsim_core.pipeline.cull` then computes
+        every ray). Used only when defined by the class that defines
+        :meth:`rays_for_indices` or a subclass, and only for patterns whose rays are emitted
+        in the order of their indices."""
+        return None
 
     def inside_fov(self, directions: np.ndarray, tol_rad: float = 1e-9) -> np.ndarray:
         """Whether each direction lies inside the datasheet FOV (shape-aware)."""

@@ -22,9 +22,14 @@ from pydantic import Field, model_validator
 from .. import kernels
 from ..base.components import ComponentOptions
 from ..hookspecs import hookimpl
-from .base import RayBatch
+from .base import DirectionGroups, RayBatch
 from .geometry import directions_from_az_el
 from .timing import CycleTimedPattern, FiringCycle
+
+
+#: Firing cycles per group of :meth:`SpinningPattern.direction_groups` (a VLP-16 group spans
+#: about 0.8 ms, 3° of the head's turn at 10 Hz).
+GROUP_CYCLES = 16
 
 
 class SpinningOptions(ComponentOptions):
@@ -111,6 +116,39 @@ class SpinningPattern(CycleTimedPattern):
             azimuth = self.head_azimuth(t) + self._az_offset[channel]
             direction = directions_from_az_el(azimuth, self._elevation[channel])
         return RayBatch(index, t, direction, channel)
+
+    def direction_groups(self, index: np.ndarray) -> DirectionGroups | None:
+        """A group per slot of the firing cycle and block of :data:`GROUP_CYCLES` cycles: its
+        rays share a channel (elevation and offset) and differ only by the head's turn between
+        their cycles, at most ``GROUP_CYCLES // 2`` periods from the middle one (the
+        representative); two directions at one elevation ``e`` whose azimuths differ by ``Δ``
+        are at most ``Δ cos e <= Δ`` apart."""
+        index = np.asarray(index, dtype=np.int64)
+        n = len(index)
+        if n == 0 or index[-1] - index[0] != n - 1:
+            return None
+        size, cycles = self.cycle.size, GROUP_CYCLES
+        first, last = int(index[0]), int(index[-1])
+        block0 = first // size // cycles
+        blocks = last // size // cycles - block0 + 1
+        block = np.repeat(np.arange(block0, block0 + blocks, dtype=np.int64), size)
+        slot = np.tile(np.arange(size, dtype=np.int64), blocks)
+        # the cycles of each (block, slot) whose ray lies in [first, last]
+        low = np.maximum(block * cycles, -((slot - first) // size))
+        high = np.minimum(block * cycles + cycles - 1, (last - slot) // size)
+        present = low <= high
+        low, high, slot = low[present], high[present], slot[present]
+
+        def members(groups: np.ndarray) -> np.ndarray:
+            count = high[groups] - low[groups] + 1
+            starts = np.cumsum(count) - count
+            cycle = np.repeat(low[groups] - starts, count) + np.arange(int(count.sum()))
+            return np.sort(cycle * size + np.repeat(slot[groups], count))
+
+        angle = 2.0 * math.pi * self.options.rotation_hz * self.cycle.period_s * \
+            (cycles // 2)
+        return DirectionGroups((low + high) // 2 * size + slot, angle * (1.0 + 1e-9) + 1e-9,
+                               members)
 
     def max_off_axis_rad(self) -> float:
         return math.pi

@@ -29,6 +29,13 @@ tenth of it, each pulse's nominal ray is tested against the box tree in each tar
 at its own pose instead (:func:`lidarsim_core.kernels.cull.cull_posed`). The tests run scans
 with and without culling and compare every column.
 
+When every trajectory bounds its own motion (:meth:`~lidarsim_core.trajectories.base.Trajectory.
+motion_rates`), the cull runs before the pulses are posed (:meth:`PulseCuller.keep_before_poses`,
+:func:`culled_with_poses`): the motion within a piece is bounded from those rates and one pose
+at the piece's middle time, targets that stray by at most a tenth of their size share one
+cube map, faster ones get a cone of directions per block of :data:`CONE_BLOCK` pulses, and
+only the kept pulses are posed (a pose is a function of its pulse's time alone: the same bits).
+
 Culling is used when the compiled kernels are (:mod:`lidarsim_core.kernels`) and every
 ray-stage noise model describes itself through
 :meth:`~lidarsim_core.noise.base.NoiseModel.ray_rotation`; not with false-alarm models, which
@@ -49,10 +56,11 @@ import numpy as np
 from .. import kernels
 from ..geometry.posing import PoseMatrices
 from ..noise.outliers import SpuriousReturnModel
-from ..patterns.base import RayBatch
+from ..patterns.base import DirectionGroups, RayBatch
 from ..scene.mesh import Mesh
+from ..trajectories.matrices import motion_rates
 from .context import RunContext
-from .posing import PiecePoses, piece_poses
+from .posing import PiecePoses, piece_poses, with_piece_poses
 
 #: Levels of median splits of a mesh's triangles into culling boxes (up to 2**levels leaves).
 CULL_TREE_LEVELS = 6
@@ -66,6 +74,9 @@ MIN_MOVING_BLOCK = 1024
 #: Times a piece is halved at most for targets that move fast (up to 4 blocks): beyond that,
 #: building a map per block cost more than testing each pulse on the two-target scene.
 MAX_MOVING_SPLITS = 2
+#: Pulses per block that share one cone per fast target when culling before the poses
+#: (:meth:`PulseCuller.keep_before_poses`).
+CONE_BLOCK = 512
 
 
 @dataclass(frozen=True)
@@ -82,6 +93,18 @@ class PulseCuller:
     #: Cube maps of reachable directions by pose (:meth:`keep`), newest last.
     _grids: dict[bytes, np.ndarray | None] = field(default_factory=dict, compare=False,
                                                    repr=False)
+    #: Plans with a wider margin, by the extra angle (:meth:`widened`).
+    _wider: dict[float, "PulseCuller"] = field(default_factory=dict, compare=False,
+                                               repr=False)
+
+    def widened(self, angle: float) -> "PulseCuller":
+        """This plan with its margin grown by ``angle`` (rad): the culler of directions that
+        stand for every direction within ``angle`` of them (cached)."""
+        with _grids_lock:
+            wider = self._wider.get(angle)
+            if wider is None:
+                wider = self._wider[angle] = PulseCuller(self.margin_rad + angle)
+        return wider
 
     @classmethod
     def for_context(cls, ctx: RunContext) -> "PulseCuller | None":
@@ -130,6 +153,122 @@ class PulseCuller:
         if grid is None:  # the sensor is inside a target's box: nothing to cull
             return np.arange(len(batch), dtype=np.int64)
         return cull_by_grid(directions, grid)
+
+    def keep_before_poses(self, ctx: RunContext, batch: RayBatch, t_frame: float,
+                          span: tuple[float, float] | None = None, groups: bool = False
+                          ) -> np.ndarray | None:
+        """Rows of ``batch`` (without poses) that may reach a target, from a few poses per
+        piece and the trajectories' rate bounds instead of a pose per pulse; None when a
+        trajectory gives no bounds (:func:`lidarsim_core.trajectories.matrices.motion_rates`)
+        or the sensor is within a target's grown box, and :meth:`keep` is to decide on the
+        posed batch.
+
+        Over the piece's times ``[t0, t1]`` the sensor turns at most at ``ωs`` and moves at
+        ``vs``, a target at ``ωt`` and ``vt``. A body point ``x`` is seen in the sensor frame
+        at ``M(t) x + o(t)`` with ``M = Rsᵀ Rt`` and ``o = Rsᵀ (pt − ps)``, so within ``Δ`` of
+        the middle time ``tm`` it strays by at most ``(ωs + ωt) Δ |x| + (vs + vt) Δ + ωs Δ
+        |pt − ps|(tm)`` (``‖M(t) − M(tm)‖₂ = 2 sin(θ/2) <= θ`` for the angle θ between them).
+        Targets that stray by at most a tenth of their size join one cube map at ``tm``
+        (:meth:`_pose_grid`); each other target gets a cone per block of
+        :data:`CONE_BLOCK` pulses: the directions within the pulse margin of its bounding
+        sphere, grown by how far it strays within the block, as seen at the block's middle
+        time.
+
+        ``span`` replaces the batch's time span (its rays then stand for groups of pulses
+        emitted within it, :func:`culled_piece`), and with ``groups`` a target that needs
+        cones gives None (the cones' blocks are made of pulses).
+        """
+        from ..kernels.cull import cull_by_grid_cones
+
+        n = len(batch)
+        trajectories = [ctx.sensor_trajectory] + [target.trajectory for target in ctx.targets]
+        if n == 0:
+            return np.arange(0, dtype=np.int64)
+        if ctx.scenario.scan.motion == "frozen" or \
+                all(tr.is_static for tr in trajectories):
+            return self.keep(ctx, batch, t_frame)  # one pose each: no per-pulse poses either
+        t = batch.t
+        t0, t1 = (float(t.min()), float(t.max())) if span is None else span
+        rates = [motion_rates(tr, t0, t1) for tr in trajectories]
+        if any(r is None for r in rates):
+            return None
+        (turn_s, speed_s), target_rates = rates[0], rates[1:]
+        trees = [cull_tree(target.mesh) for target in ctx.targets]
+        middle = 0.5 * (t0 + t1)
+        half = max(middle - t0, t1 - middle) * (1.0 + 1e-12)
+
+        def pose(trajectory, times: np.ndarray) -> PoseMatrices:  # noqa: ANN001
+            return ctx.trajectory_poses(trajectory, times, t_frame).full(len(times))
+
+        at_middle = np.array([middle])
+        sensor = pose(ctx.sensor_trajectory, at_middle)
+        grid_targets, cone_targets, motion = [], [], []
+        for k, (target, tree, (turn_t, speed_t)) in enumerate(
+                zip(ctx.targets, trees, target_rates)):
+            lo, hi = tree[0][0], tree[1][0]
+            posed = pose(target.trajectory, at_middle)
+            moved = _strays(turn_s, speed_s, turn_t, speed_t, half, _reach(lo, hi),
+                            float(np.linalg.norm(posed.position[0] - sensor.position[0])))
+            if moved <= 0.1 * float(np.linalg.norm(hi - lo)):
+                grid_targets.append((k, posed))
+                motion.append(moved)
+            elif groups:
+                return None
+            else:
+                cone_targets.append(k)
+        grid = np.zeros((6, 1, 1), dtype=np.uint8)
+        if grid_targets:
+            posed = PiecePoses(sensor, tuple(p for _, p in grid_targets))
+            built = self._pose_grid(posed, 0, motion, [trees[k] for k, _ in grid_targets])
+            if built is None:  # the sensor is within a grown box
+                return None
+            grid = built
+        directions = batch.direction
+        if directions.dtype != np.float64:
+            directions = directions.astype(np.float64)
+        axes, cosines = self._cones(ctx, cone_targets, trees, t, (turn_s, speed_s),
+                                    target_rates, t_frame)
+        return cull_by_grid_cones(directions, grid, bool(grid_targets), CONE_BLOCK, axes,
+                                  cosines)
+
+    def _cones(self, ctx: RunContext, cone_targets: list[int],
+               trees: list[tuple[np.ndarray, ...]], t: np.ndarray,
+               sensor_rates: tuple[float, float], target_rates: list[tuple[float, float]],
+               t_frame: float) -> tuple[np.ndarray, np.ndarray]:
+        """Per block of :data:`CONE_BLOCK` pulses, the unit axis (blocks, K, 3) and the
+        cosine of the half angle (blocks, K) of the cone of directions that may reach each
+        of ``cone_targets`` (see :meth:`keep_before_poses`)."""
+        starts = np.arange(0, len(t), CONE_BLOCK)
+        blocks = len(starts)
+        axes = np.zeros((blocks, len(cone_targets), 3))
+        cosines = np.full((blocks, len(cone_targets)), np.inf)
+        if not cone_targets:
+            return axes, cosines
+        first, last = np.minimum.reduceat(t, starts), np.maximum.reduceat(t, starts)
+        middle = 0.5 * (first + last)
+        span = np.maximum(middle - first, last - middle) * (1.0 + 1e-12)
+        sensor = ctx.trajectory_poses(ctx.sensor_trajectory, middle, t_frame).full(blocks)
+        turn_s, speed_s = sensor_rates
+        for j, k in enumerate(cone_targets):
+            lo, hi = trees[k][0][0], trees[k][1][0]
+            centre, radius = 0.5 * (lo + hi), 0.5 * float(np.linalg.norm(hi - lo))
+            posed = ctx.trajectory_poses(ctx.targets[k].trajectory, middle, t_frame).full(blocks)
+            # the sphere's centre in the sensor frame: Rsᵀ (Rt c + pt − ps)
+            offset = posed.position - sensor.position
+            scene = np.einsum("nij,j->ni", posed.matrix, centre) + offset
+            seen = np.einsum("nji,nj->ni", sensor.matrix, scene)
+            distance = np.linalg.norm(seen, axis=1)
+            turn_t, speed_t = target_rates[k]
+            strays = _strays(turn_s, speed_s, turn_t, speed_t, span, _reach(lo, hi),
+                             np.linalg.norm(offset, axis=1))
+            grown = radius + strays + 1e-9 + 1e-12 * distance
+            inside = grown >= distance
+            angle = np.arcsin(np.minimum(grown / np.where(inside, grown, distance), 1.0)) + \
+                self.margin_rad
+            cosine = np.cos(np.minimum(angle, np.pi)) - 1e-9
+            cosines[:, j] = np.where(inside | (angle >= np.pi), -2.0, cosine)  # -2: every direction
+            axes[:, j] = seen / np.where(distance > 0, distance, 1.0)[:, None]
+        return axes, cosines
 
     def _per_pulse(self, directions: np.ndarray, posed: PiecePoses,
                    trees: list[tuple[np.ndarray, ...]], start: int, stop: int) -> np.ndarray:
@@ -248,6 +387,83 @@ class PulseCuller:
                 self._grids.pop(next(iter(self._grids)))
             self._grids[key] = grid
         return grid
+
+
+def _reach(lo: np.ndarray, hi: np.ndarray) -> float:
+    """The farthest corner of the box ``lo``–``hi`` from the origin."""
+    return float(np.sqrt((np.maximum(np.abs(lo), np.abs(hi)) ** 2).sum()))
+
+
+def _strays(turn_s: float, speed_s: float, turn_t: float, speed_t: float,
+            span: float | np.ndarray, reach: float, distance: float | np.ndarray
+            ) -> float | np.ndarray:
+    """How far a body point within ``reach`` of a target's origin strays in the sensor frame
+    within ``span`` seconds of a time at which the target's origin is ``distance`` from the
+    sensor's (see :meth:`PulseCuller.keep_before_poses`), with slack for rounding."""
+    moved = (turn_s + turn_t) * span * reach + (speed_s + speed_t) * span + \
+        turn_s * span * distance
+    return moved * (1.0 + 1e-9) + 1e-9 + 1e-12 * (reach + distance)
+
+
+def culled_piece(ctx: RunContext, culler: "PulseCuller | None", index: np.ndarray,
+                 t_frame: float) -> RayBatch:
+    """The rays of the pulses ``index`` (ascending, consecutive) that may reach a target, with
+    their poses: the rays of :func:`pattern_candidates` only, culled and posed by
+    :func:`culled_with_poses`."""
+    candidates = pattern_candidates(ctx, culler, index, t_frame)
+    return culled_with_poses(ctx, culler, ctx.pattern.rays_for_indices(candidates), t_frame)
+
+
+def pattern_candidates(ctx: RunContext, culler: "PulseCuller | None", index: np.ndarray,
+                       t_frame: float, grouped: "DirectionGroups | None" = None,
+                       representatives: RayBatch | None = None) -> np.ndarray:
+    """The pulses of ``index`` (ascending, consecutive) whose rays are to be computed. When
+    the pattern groups its rays by direction
+    (:meth:`~lidarsim_core.patterns.base.ScanPattern.direction_groups`: every ray of a group
+    within an angle of its representative), the pulses of the groups whose representative
+    passes the cull with the margin grown by that angle, over the piece's time span; else
+    every pulse. ``grouped`` and ``representatives`` may pass the groups and their rays
+    when already computed."""
+    pattern = ctx.pattern
+    if grouped is None and culler is not None and len(index) and \
+            _defines(pattern, "direction_groups", "rays_for_indices"):
+        grouped = pattern.direction_groups(index)
+    if grouped is None:
+        return index
+    if representatives is None:
+        representatives = pattern.rays_for_indices(grouped.representative)
+    ends = pattern.time_of_index(index[[0, -1]])  # emitted in the order of the indices
+    kept = culler.widened(grouped.angle).keep_before_poses(
+        ctx, representatives, t_frame, span=(float(ends.min()), float(ends.max())),
+        groups=True)
+    return index if kept is None else grouped.members(kept)
+
+
+def _defines(obj: object, name: str, under: str) -> bool:
+    """Whether ``obj``'s class defines ``name`` in the class that defines ``under`` or below
+    it (a subclass that redefines ``under`` alone would break ``name``'s promise)."""
+    mro = type(obj).__mro__
+
+    def position(attribute: str) -> int:
+        return next((i for i, k in enumerate(mro) if attribute in vars(k)), len(mro))
+
+    return position(name) <= position(under)
+
+
+def culled_with_poses(ctx: RunContext, culler: "PulseCuller | None", batch: RayBatch,
+                      t_frame: float) -> RayBatch:
+    """``batch``'s pulses that may reach a target, with their poses attached
+    (:func:`~lidarsim_core.pipeline.posing.with_piece_poses`): culled first and posed after
+    when the culler can decide without per-pulse poses (:meth:`PulseCuller.keep_before_poses`),
+    else posed first. A pose is a function of the pulse's time alone, so either order gives
+    a kept pulse the same bits."""
+    if culler is None:
+        return with_piece_poses(ctx, batch, t_frame)
+    rows = culler.keep_before_poses(ctx, batch, t_frame)
+    if rows is not None:
+        return with_piece_poses(ctx, batch.take(rows), t_frame)
+    batch = with_piece_poses(ctx, batch, t_frame)
+    return batch.take(culler.keep(ctx, batch, t_frame))
 
 
 _grids_lock = threading.Lock()

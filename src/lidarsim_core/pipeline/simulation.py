@@ -65,10 +65,9 @@ from ..scene.materials import Material, MaterialTable, material_library, part_ma
 from .budget import check_simulation
 from .cast import process_piece
 from .context import RunContext, Target
-from .cull import PulseCuller
+from .cull import PulseCuller, culled_piece
 from .frameinfo import frame_infos
 from .inside import check_sensor_outside
-from .posing import with_piece_poses
 from .stages import Stage, measurement_stages
 from .units import warn_about_units
 
@@ -192,10 +191,9 @@ class Simulation:
                   for lo, hi in split_range(start, stop, piece_pulses)]
 
         def work(piece: tuple[int, int, int]) -> dict[str, np.ndarray]:
-            batch = ctx.pattern.rays_for_indices(np.arange(piece[1], piece[2], dtype=np.int64))
-            batch = with_piece_poses(ctx, batch, t_frame)  # shared by culling and casting
-            if self.culler is not None:  # only pulses that may reach a target go on
-                batch = batch.take(self.culler.keep(ctx, batch, t_frame))
+            # only pulses that may reach a target go on, with their rays and poses
+            batch = culled_piece(ctx, self.culler,
+                                 np.arange(piece[1], piece[2], dtype=np.int64), t_frame)
             return process_piece(ctx, self.stages, batch, contexts, t_frame, frame)
 
         def merged(parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:

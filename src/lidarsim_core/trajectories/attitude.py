@@ -14,6 +14,7 @@ Two laws, chosen with ``mode``:
 
 from __future__ import annotations
 
+import math
 from typing import Annotated, Any, Literal, Union
 
 import numpy as np
@@ -59,6 +60,34 @@ class LookAtAttitude(ComponentOptions):
         return look_at_matrices(positions, point, up)
 
 
+    def rate_bound(self, position: np.ndarray, speed: float, span: float) -> float | None:
+        """An upper bound on the body's angular speed (rad/s) while it stays within
+        ``speed · span`` of ``position`` (m) moving at most at ``speed`` (m/s); None near the
+        point or where the boresight comes near ``up`` (the law switches axes there).
+
+        The boresight ``x`` turns at most at ``speed / r`` (``r`` the distance to the point).
+        The frame's angular velocity ``ω`` has ``x × ẋ`` across the boresight (norm ``|ẋ|``)
+        and the roll ``ω·x = −y·ż`` about it; with ``z = w / |w|``, ``w = up − (up·x) x``,
+        ``y·ż = y·ẇ / |w| = −(up·x)(y·ẋ) / |w|``, so ``|ω|² <= |ẋ|² (1 + (up·x)² / |w|²) =
+        |ẋ|² / |w|²`` (``|w|² = 1 − (up·x)²``): ``|ω| <= |ẋ| / |w|``.
+        """
+        ux, uy, uz = self.up
+        norm = math.sqrt(ux * ux + uy * uy + uz * uz)
+        ux, uy, uz = ux / norm, uy / norm, uz / norm
+        px, py, pz = (float(v) for v in np.asarray(position, dtype=np.float64).reshape(3))
+        ox, oy, oz = self.point_m[0] - px, self.point_m[1] - py, self.point_m[2] - pz
+        distance = math.sqrt(ox * ox + oy * oy + oz * oz)
+        r_min = distance - speed * span
+        if not r_min > 1e-3 * max(1.0, distance):
+            return None
+        # |x(t) - x(mid)| <= speed·span / r_min, and |up × x| is 1-Lipschitz in x
+        cx, cy, cz = uy * oz - uz * oy, uz * ox - ux * oz, ux * oy - uy * ox
+        w_min = math.sqrt(cx * cx + cy * cy + cz * cz) / distance - speed * span / r_min
+        if not w_min > 1e-3:
+            return None
+        return speed / r_min / w_min
+
+
 class FixedAttitude(ComponentOptions):
     """A constant body→scene rotation."""
 
@@ -84,6 +113,10 @@ class FixedAttitude(ComponentOptions):
         """The fixed rotation, once per position."""
         quat = self.rotation().as_quat()
         return Rotation.from_quat(np.tile(quat, (len(positions), 1)))
+
+    def rate_bound(self, position: np.ndarray, speed: float, span: float) -> float:
+        """The body does not turn: 0."""
+        return 0.0
 
     def matrices(self, positions: np.ndarray) -> np.ndarray:
         """The fixed rotation's matrix, once per position."""

@@ -41,6 +41,20 @@ class Trajectory(Component):
             Naming ``source`` and ``field`` (the trajectory's own fields below it).
         """
 
+    def motion_rates(self, t0: float, t1: float) -> tuple[float, float] | None:
+        """Upper bounds on the body's angular speed (rad/s) and on the speed of its origin
+        (m/s) at every time in ``[t0, t1]``, or None when the trajectory gives none (the
+        default).
+
+        The pipeline's culling uses them to bound how far a body moves among a piece's rays
+        without a pose per ray (:mod:`lidarsim_core.pipeline.cull`); a bound that is too small
+        would drop pulses that hit, so a trajectory returns None unless the bound is certain.
+        They are used only when defined by the class that defines :meth:`poses_at` and
+        :meth:`pose_matrices` or a subclass of it
+        (:func:`lidarsim_core.trajectories.matrices.motion_rates`).
+        """
+        return None
+
     def pose_matrices(self, t: np.ndarray) -> "PoseMatrices":
         """Poses at times ``t`` as (N, 3) positions and (N, 3, 3) rotation matrices (default:
         from :meth:`poses_at`)."""

@@ -253,6 +253,32 @@ class HCWTrajectory(Trajectory):
                 vel[sel] = piece.v0
         return pos, vel
 
+    def motion_rates(self, t0: float, t1: float) -> tuple[float, float] | None:
+        """The largest speed of the pieces flown in ``[t0, t1]`` (a natural piece's velocity
+        components are ``a sin nτ + b cos nτ + c``: at most ``√(a² + b²) + |c|`` each), and
+        the attitude law's bound on its turn (:meth:`.LookAtAttitude.rate_bound`)."""
+        n = self.n
+        first, last = np.searchsorted(self._starts, [t0, t1], side="right") - 1
+        speed = 0.0
+        for piece in self._pieces[first:last + 1]:
+            if piece.kind == "straight":
+                speed = max(speed, float(np.linalg.norm(piece.v0)))
+            elif piece.kind == "natural":
+                x0, z0 = piece.p0[0], piece.p0[2]
+                vx, vy, vz = piece.v0
+                bound = (math.hypot(3.0 * n * x0 + 2.0 * vy, vx),
+                         math.hypot(6.0 * n * x0 + 4.0 * vy, 2.0 * vx)
+                         + abs(6.0 * n * x0 + 3.0 * vy),
+                         math.hypot(n * z0, vz))
+                speed = max(speed, math.sqrt(sum(b * b for b in bound)))
+        speed *= 1.0 + 1e-9  # the rounding of the bound itself
+        if speed == 0.0:
+            return 0.0, 0.0
+        middle = 0.5 * (t0 + t1)
+        position, _ = self.states_at(np.array([middle]), velocities=False)
+        turn = self.options.attitude.rate_bound(position[0], speed, max(middle - t0, t1 - middle))
+        return None if turn is None else (turn, speed)
+
     @property
     def end_time_s(self) -> float:
         """When the last segment ends (s from the epoch)."""

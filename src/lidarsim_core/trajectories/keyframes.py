@@ -282,6 +282,43 @@ class KeyframeTrajectory(Trajectory):
                                                     len(t), axis=0))
         return PoseMatrices(position, self._slerp_matrices(tc))
 
+    def motion_rates(self, t0: float, t1: float) -> tuple[float, float] | None:
+        """Over the keyframe intervals that ``[t0, t1]`` meets (the pose holds outside the
+        keyframes): the largest speed of the positions (linear: each interval's chord over
+        its duration; cubic: ``|c| + 2|b| h + 3|a| h²`` per component of the spline's
+        ``a τ³ + b τ² + c τ + d`` on an interval of length ``h``) and the largest SLERP rate
+        (each interval's rotation angle over its duration), or the attitude law's bound;
+        None with the rotation spline."""
+        if self._position_fn is None:
+            return 0.0, 0.0
+        first, last = self.time_span
+        lo, hi = max(t0, first), min(t1, last)
+        if lo > hi:  # wholly outside the keyframes: the end pose holds
+            return 0.0, 0.0
+        k0 = max(int(np.searchsorted(self._times, lo, side="right")) - 1, 0)
+        k1 = min(int(np.searchsorted(self._times, hi, side="left")), len(self._times) - 1)
+        k1 = max(k1, k0 + 1)
+        h = np.diff(self._times)[k0:k1]
+        if self.options.position_interpolation == "linear":
+            chord = np.linalg.norm(np.diff(self._positions, axis=0)[k0:k1], axis=1)
+            speed = float((chord / h).max())
+        else:
+            a, b, c = (np.abs(self._position_fn.c[i, k0:k1]) for i in range(3))
+            bound = c + 2.0 * b * h[:, None] + 3.0 * a * (h * h)[:, None]
+            speed = float(np.sqrt((bound * bound).sum(axis=1)).max())
+        speed *= 1.0 + 1e-9
+        if self.options.attitude is not None:
+            middle = 0.5 * (t0 + t1)
+            position = self.pose_matrices(np.array([min(max(middle, first), last)])).position
+            turn = self.options.attitude.rate_bound(position[0], speed,
+                                                    max(middle - t0, t1 - middle))
+            return None if turn is None else (turn, speed)
+        if self.options.rotation_interpolation == "spline":
+            return None
+        angles = np.linalg.norm((self._rotations[:-1].inv() * self._rotations[1:]).as_rotvec(),
+                                axis=1)[k0:k1]
+        return float((angles / h).max()) * (1.0 + 1e-9), speed
+
     def _slerp_matrices(self, t: np.ndarray) -> np.ndarray:
         """SciPy ``Slerp`` in quaternion arithmetic: ``q_k ⊗ exp(α · log(q_k⁻¹ q_k+1))``."""
         if self._slerp is None:

@@ -74,6 +74,10 @@ class ConstantVelocityTrajectory(Trajectory):
         tau = np.atleast_1d(np.asarray(t, dtype=np.float64)) - self.options.t_ref_s
         return PoseMatrices(self._p0 + tau[:, None] * self._v, self._chain.matrices(tau))
 
+    def motion_rates(self, t0: float, t1: float) -> tuple[float, float]:
+        """``|ω|`` and ``|v|``, constant."""
+        return self._chain.rate_bound, float(np.linalg.norm(self._v))
+
     def poses_at(self, t: np.ndarray) -> Poses:
         tau = np.atleast_1d(np.asarray(t, dtype=np.float64)) - self.options.t_ref_s
         position = self._p0 + tau[:, None] * self._v

@@ -34,3 +34,24 @@ def pose_matrices(trajectory: "Trajectory", t: np.ndarray) -> PoseMatrices:
     if has_fast_path(trajectory):
         return trajectory.pose_matrices(t)
     return PoseMatrices.from_poses(trajectory.poses_at(t))
+
+
+def motion_rates(trajectory: "Trajectory", t0: float, t1: float) -> tuple[float, float] | None:
+    """``trajectory``'s bounds on its angular speed (rad/s) and speed (m/s) over ``[t0, t1]``
+    (:meth:`~lidarsim_core.trajectories.base.Trajectory.motion_rates`): ``(0, 0)`` for a
+    static one, None when it gives none or when a subclass redefines its poses below the
+    class that gives the bounds (they would describe another motion)."""
+    if trajectory.is_static:
+        return (0.0, 0.0)
+    cls = type(trajectory)
+    rates_at = _defining_class(cls, "motion_rates")
+    if rates_at > _defining_class(cls, "poses_at") or \
+            rates_at > _defining_class(cls, "pose_matrices") or not has_fast_path(trajectory):
+        return None
+    rates = trajectory.motion_rates(float(t0), float(t1))
+    if rates is None:
+        return None
+    angular, linear = (float(r) for r in rates)
+    if not (0.0 <= angular < float("inf") and 0.0 <= linear < float("inf")):
+        return None
+    return angular, linear

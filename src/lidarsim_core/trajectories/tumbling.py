@@ -208,6 +208,12 @@ class TumblingTrajectory(_RigidBodyTrajectory):
     def scene_matrices(self, tau: np.ndarray) -> np.ndarray:
         return self._chain.matrices(tau)
 
+    def motion_rates(self, t0: float, t1: float) -> tuple[float, float]:
+        """The chain's angular speed bound; the origin ``p - R·c`` moves at most that times
+        ``|c|`` (``c`` the centre of mass in the body frame)."""
+        rate = self._chain.rate_bound
+        return rate, rate * float(np.linalg.norm(self._com))
+
     def angular_velocity_inertial(self, t: np.ndarray) -> np.ndarray:
         """(N, 3) inertial angular velocity ``φ̇ h + ψ̇ R(t) s`` (rad/s)."""
         tau = np.atleast_1d(np.asarray(t, dtype=np.float64)) - self.options.t_ref_s
