@@ -66,6 +66,7 @@ from .cast import process_piece
 from .context import RunContext, Target
 from .cull import PulseCuller
 from .frameinfo import frame_infos
+from .fused import FusedPath
 from .inside import check_sensor_outside
 from .posing import with_piece_poses
 from .stages import Stage, measurement_stages
@@ -130,6 +131,8 @@ class Simulation:
         check_simulation(self.context)  # the resource budget, before any ray is generated
         #: Plan for skipping pulses that cannot reach a target (None: every pulse is cast).
         self.culler: PulseCuller | None = PulseCuller.for_context(self.context)
+        #: The compiled path of the seed paper's model (None: the general path, :mod:`.fused`).
+        self.fused: FusedPath | None = FusedPath.for_context(self.context, self.stages)
         # third-party components that fail mid-run are reported with their name
         parts: list[tuple[str, Any]] = [("scan_pattern", pattern), ("ray_backend", backend),
                                         ("trajectory", sensor_trajectory)]
@@ -195,6 +198,8 @@ class Simulation:
             batch = with_piece_poses(ctx, batch, t_frame)  # shared by culling and casting
             if self.culler is not None:  # only pulses that may reach a target go on
                 batch = batch.take(self.culler.keep(ctx, batch, t_frame))
+            if self.fused is not None:  # the seed paper's model, compiled: the same bits
+                return self.fused.process(batch, contexts, t_frame)
             return process_piece(ctx, self.stages, batch, contexts, t_frame, frame)
 
         def merged(parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
