@@ -16,6 +16,9 @@ loops instead:
   Lissajous directions;
 * :mod:`.poses`: per-ray rotations of the built-in trajectories (chains of rotations at
   constant rates: tumbling, constant angular velocity; the look-at attitude);
+* :mod:`.fused`: the seed paper's model after culling, around the cast (angular error with
+  the inverse normal CDF, frame changes, closest target, range gate, range error, the
+  record's points; :mod:`lidarsim_core.pipeline.fused`);
 * :mod:`.cull`: a conservative test that skips pulses which cannot reach any target's
   bounding box, even after their angular error and beam divergence, before anything else is
   computed for them.
@@ -88,6 +91,7 @@ def _warm_up_calls() -> list[tuple[str, Callable[[], Any], Any]]:
     import numpy as np
 
     from .cull import cull_by_grid, cull_posed, direction_grid, motion_bound
+    from .fused import body_rays, closest_hit, measure, normals, ray_stage
     from .patterns import cycle_rays, lissajous_directions, spinning_directions
     from .philox import ray_uniforms
     from .poses import chain_matrices, look_at_matrices
@@ -134,6 +138,19 @@ def _warm_up_calls() -> list[tuple[str, Callable[[], Any], Any]]:
                                                    np.ones(1)), chain_matrices),
         ("look-at", lambda: look_at_matrices(one, np.zeros(3), np.array([0.0, 0.0, 1.0])),
          look_at_matrices),
+        ("normals", lambda: normals(np.zeros(2, dtype=np.uint64), index, 2), normals),
+        ("fused ray stage", lambda: ray_stage(one, index, np.zeros((1, 2), dtype=np.uint64),
+                                              np.ones(1), np.eye(3)[None], np.empty((1, 3)),
+                                              np.empty((1, 3))), ray_stage),
+        ("fused body rays", lambda: body_rays(one, one, one, np.eye(3)[None], np.empty((1, 3)),
+                                              np.empty((1, 3))), body_rays),
+        ("fused closest hit", lambda: closest_hit(
+            0, np.ones(1), index, one, one, np.zeros(1, dtype=np.int32), 0, np.full(1, np.inf),
+            np.full(1, -1, dtype=np.int16), np.full(1, -1, dtype=np.int64),
+            np.full(1, -1, dtype=np.int16), np.zeros(1)), closest_hit),
+        ("fused measure", lambda: measure(np.ones(1), np.zeros(1, dtype=np.int16), one, index,
+                                          0.0, 2.0, np.zeros((1, 2), dtype=np.uint64),
+                                          np.ones(1)), measure),
     ]
 
 
