@@ -56,25 +56,13 @@ _EXP_M2 = 0.13533528323661269189  # exp(-2)
 
 
 @njit(inline="always", cache=True)
-def _polevl(x, c):  # noqa: ANN001, ANN202 - c0 x^N + ... + cN (Horner, Cephes' order)
-    a = c[0]
-    for i in range(1, len(c)):
-        a = a * x + c[i]
-    return a
-
-
-@njit(inline="always", cache=True)
-def _p1evl(x, c):  # noqa: ANN001, ANN202 - x^N + c0 x^(N-1) + ... (leading 1 implied)
-    a = x + c[0]
-    for i in range(1, len(c)):
-        a = a * x + c[i]
-    return a
-
-
-@njit(inline="always", cache=True)
 def ndtri(y0):  # noqa: ANN001, ANN201
     """Inverse of the standard normal CDF for ``0 < y0 < 1`` (SciPy's ``ndtri``, bit for
-    bit: the uniforms of :mod:`lidarsim_core.noise.rng` never reach 0 or 1)."""
+    bit: the uniforms of :mod:`lidarsim_core.noise.rng` never reach 0 or 1).
+
+    Cephes' Horner evaluations (``polevl``, and ``p1evl`` with its implied leading 1) are
+    written out, in their order of operations.
+    """
     negate = True
     y = y0
     if y > 1.0 - _EXP_M2:
@@ -83,17 +71,51 @@ def ndtri(y0):  # noqa: ANN001, ANN201
     if y > _EXP_M2:
         y = y - 0.5
         y2 = y * y
-        x = y + y * (y2 * _polevl(y2, _P0) / _p1evl(y2, _Q0))
+        p = ((((_P0[0] * y2 + _P0[1]) * y2 + _P0[2]) * y2 + _P0[3]) * y2 + _P0[4])
+        q = y2 + _Q0[0]
+        q = q * y2 + _Q0[1]
+        q = q * y2 + _Q0[2]
+        q = q * y2 + _Q0[3]
+        q = q * y2 + _Q0[4]
+        q = q * y2 + _Q0[5]
+        q = q * y2 + _Q0[6]
+        q = q * y2 + _Q0[7]
+        x = y + y * (y2 * p / q)
         return x * _SQRT2PI
     x = math.sqrt(-2.0 * math.log(y))
     x0 = x - math.log(x) / x
     z = 1.0 / x
     if x < 8.0:
-        x1 = z * _polevl(z, _P1) / _p1evl(z, _Q1)
+        x1 = z * _polevl9(z, _P1) / _p1evl8(z, _Q1)
     else:
-        x1 = z * _polevl(z, _P2) / _p1evl(z, _Q2)
+        x1 = z * _polevl9(z, _P2) / _p1evl8(z, _Q2)
     x = x0 - x1
     return -x if negate else x
+
+
+@njit(inline="always", cache=True)
+def _polevl9(x, c):  # noqa: ANN001, ANN202 - c0 x^8 + ... + c8, Cephes' Horner order
+    a = c[0]
+    a = a * x + c[1]
+    a = a * x + c[2]
+    a = a * x + c[3]
+    a = a * x + c[4]
+    a = a * x + c[5]
+    a = a * x + c[6]
+    a = a * x + c[7]
+    return a * x + c[8]
+
+
+@njit(inline="always", cache=True)
+def _p1evl8(x, c):  # noqa: ANN001, ANN202 - x^8 + c0 x^7 + ... + c7 (leading 1 implied)
+    a = x + c[0]
+    a = a * x + c[1]
+    a = a * x + c[2]
+    a = a * x + c[3]
+    a = a * x + c[4]
+    a = a * x + c[5]
+    a = a * x + c[6]
+    return a * x + c[7]
 
 
 @njit(nogil=True, cache=True)

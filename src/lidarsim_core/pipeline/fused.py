@@ -72,6 +72,19 @@ class ClosestHits:
     cos_incidence: np.ndarray
 
 
+@dataclass
+class Returned:
+    """The pulses of a piece that return (written by :meth:`FusedPath.measure`)."""
+
+    #: (M,) their rows in the piece, in order.
+    rows: np.ndarray
+    range_true: np.ndarray
+    range_measured: np.ndarray
+    #: (3, M) measured and true points, sensor frame.
+    point: np.ndarray
+    truth: np.ndarray
+
+
 class FusedPath:
     """The compiled path of one run (see the module docstring); build it with
     :meth:`for_context`."""
@@ -151,25 +164,33 @@ class FusedPath:
                         out.distance, out.target, out.face, out.part, out.cos_incidence)
         return out
 
-    def columns(self, rays: CastRays, best: ClosestHits, contexts: list[NoiseContext],
-                t_frame: float) -> dict[str, np.ndarray]:
-        """The range gate, the range error and the point-record columns
-        (:func:`lidarsim_core.pipeline.stages.record_columns`'s, in its order)."""
+    def measure(self, rays: CastRays, best: ClosestHits, contexts: list[NoiseContext]
+                ) -> Returned:
+        """The range gate and the range error: the pulses that return, with their ranges and
+        points."""
         from ..kernels.fused import measure
 
-        ctx, batch = self.ctx, rays.batch
         keys, sigmas = self._keys(self.ranges, contexts, False)
-        rows, range_true, range_measured, point, truth = measure(
-            best.distance, best.target, rays.flown, np.ascontiguousarray(batch.index),
-            float(ctx.sensor.range_min_m), float(ctx.range_limit), keys, sigmas)
+        return Returned(*measure(best.distance, best.target, rays.flown,
+                                 np.ascontiguousarray(rays.batch.index),
+                                 float(self.ctx.sensor.range_min_m),
+                                 float(self.ctx.range_limit), keys, sigmas))
+
+    def columns(self, rays: CastRays, best: ClosestHits, returned: Returned, t_frame: float
+                ) -> dict[str, np.ndarray]:
+        """The point-record columns (:func:`lidarsim_core.pipeline.stages.record_columns`'s,
+        in its order); those made of NumPy's transcendental functions (azimuth, elevation,
+        incidence angle, intensity) are computed here, on the returned pulses only."""
+        ctx, batch, rows = self.ctx, rays.batch, returned.rows
         azimuth, elevation = az_el_from_directions(batch.direction[rows])
         cos_incidence = best.cos_incidence[rows]
         part = best.part[rows]
         ones = np.ones(len(rows), dtype=np.uint8)
+        point, truth = returned.point, returned.truth
         columns = {
             "x": point[0], "y": point[1], "z": point[2],
             "x_true": truth[0], "y_true": truth[1], "z_true": truth[2],
-            "range": range_measured, "range_true": range_true,
+            "range": returned.range_measured, "range_true": returned.range_true,
             "azimuth": azimuth, "elevation": elevation, "timestamp": batch.t[rows],
             "return_number": ones, "number_of_returns": ones.copy(),
             "channel": batch.channel[rows], "ray_index": batch.index[rows],
@@ -186,7 +207,8 @@ class FusedPath:
                 ) -> dict[str, np.ndarray]:
         """Point-record columns of a piece of pulses (what ``process_piece`` returns)."""
         rays = self.before_cast(batch, contexts, t_frame)
-        return self.columns(rays, self.closest(rays, self.cast(rays)), contexts, t_frame)
+        best = self.closest(rays, self.cast(rays))
+        return self.columns(rays, best, self.measure(rays, best, contexts), t_frame)
 
 
 def _c(array: np.ndarray, dtype: type = np.float64) -> np.ndarray:
