@@ -8,6 +8,7 @@ dtype and bytes; the inverse normal CDF of the kernels is compared with SciPy's.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +23,8 @@ from lidarsim_core.plugins.registry import Registry
 from lidarsim_core.scenario import demo_scenario, load_scenario, scenario_from_dict
 
 pytest.importorskip("numba", reason="the fast path is made of the compiled kernels")
+pytestmark = pytest.mark.skipif(os.environ.get("LIDARSIM_KERNELS", "").strip().lower() == "numpy",
+                                reason="LIDARSIM_KERNELS=numpy: the general path only")
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "scenarios"
 
 

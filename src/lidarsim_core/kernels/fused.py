@@ -238,7 +238,8 @@ def closest_hit(target, distance, face, normal, direction, face_part, part_offse
 
 
 @njit(nogil=True, cache=True)
-def measure(best, best_target, flown, ray_index, range_min, range_max, keys, sigmas):  # noqa: ANN001, ANN201
+def measure(best, best_target, flown, ray_index, range_min, range_max, keys,  # noqa: ANN001
+            sigmas):  # noqa: ANN001, ANN201
     """The range gate, the range error and the point-record columns of the pulses that return.
 
     ``keys``, ``sigmas``: (R, 2) Philox keys and (R,) σ (m) of the chain's range errors, in
