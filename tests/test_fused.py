@@ -168,3 +168,19 @@ def test_third_party_models_beam_and_detection_take_the_general_path(monkeypatch
     assert Simulation(scenario_from_dict(false_alarms)).fused is None
     monkeypatch.setenv("LIDARSIM_KERNELS", "numpy")
     assert Simulation(scenario_from_dict(_demo())).fused is None
+
+
+def test_empty_and_small_pieces_give_the_general_columns():
+    from lidarsim_core.pipeline.cast import process_piece
+    from lidarsim_core.pipeline.posing import with_piece_poses
+
+    sim = Simulation(scenario_from_dict(_two_targets_moving_sensor()))
+    contexts = sim.context.noise_contexts(0)
+    rays = with_piece_poses(sim.context, sim.pattern.rays_for_indices(np.arange(0, 64)), 0.0)
+    for batch in (rays.take(np.array([], dtype=np.int64)), rays):
+        fast = sim.fused.process(batch, contexts, 0.0)
+        general = process_piece(sim.context, sim.stages, batch, contexts, 0.0, 0)
+        assert list(fast) == list(general)
+        for name, column in general.items():
+            assert fast[name].dtype == column.dtype, name
+            assert fast[name].tobytes() == np.asarray(column).tobytes(), name
