@@ -68,6 +68,10 @@ SCENES = {
         {"name": "range", "options": {"sigma_m": 0.05}},
         {"name": "angular", "options": {"sigma_deg": 0.3}},
         {"name": "angular"}, {"name": "range"}])),
+    "systematic-and-quantised-ranges": lambda: scenario_from_dict(_demo(noise=[
+        {"name": "angular"}, {"name": "range"},
+        {"name": "range_systematic", "options": {"bias_m": 0.013, "scale": 2e-4}},
+        {"name": "range_quantisation", "options": {"step_m": 0.004, "offset_m": 0.001}}])),
     "no-noise": lambda: scenario_from_dict(_demo(noise=[])),
     "zero-sigma": lambda: scenario_from_dict(_demo(noise=[
         {"name": "angular", "options": {"sigma_deg": 0.0}}, {"name": "range"}])),
@@ -156,6 +160,8 @@ def test_third_party_models_beam_and_detection_take_the_general_path(monkeypatch
 
     subclass = _demo(noise=[{"name": "angular_point"}, {"name": "range"}])
     assert Simulation(scenario_from_dict(subclass)).fused is None
+    growing = _demo(noise=[{"name": "angular"}, {"name": "range_growing"}])
+    assert Simulation(scenario_from_dict(growing)).fused is None
     beam = _demo()
     beam["sensor"]["beam"] = {"sub_rays": 9, "divergence_deg": [0.8, 0.8]}
     beam["sensor"]["returns"] = {"range_resolution_m": 0.3}

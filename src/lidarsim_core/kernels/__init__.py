@@ -149,8 +149,9 @@ def _warm_up_calls() -> list[tuple[str, Callable[[], Any], Any]]:
             np.full(1, -1, dtype=np.int16), np.full(1, -1, dtype=np.int64),
             np.full(1, -1, dtype=np.int16), np.zeros(1)), closest_hit),
         ("fused measure", lambda: measure(np.ones(1), np.zeros(1, dtype=np.int16), one, index,
-                                          0.0, 2.0, np.zeros((1, 2), dtype=np.uint64),
-                                          np.ones(1)), measure),
+                                          0.0, 2.0, np.zeros(1, dtype=np.int64),
+                                          np.zeros((1, 2), dtype=np.uint64),
+                                          np.ones((1, 2))), measure),
     ]
 
 

@@ -53,6 +53,8 @@ _Q2 = (6.02427039364742014255E0, 3.67983563856160859403E0, 1.3770209948908133027
        2.89247864745380683936E-6, 6.79019408009981274425E-9)
 _SQRT2PI = 2.50662827463100050242E0
 _EXP_M2 = 0.13533528323661269189  # exp(-2)
+#: Kinds of the return-stage range models :func:`measure` applies.
+RANGE_GAUSSIAN, RANGE_SYSTEMATIC, RANGE_QUANTISED = 0, 1, 2
 
 
 @njit(inline="always", cache=True)
@@ -238,13 +240,17 @@ def closest_hit(target, distance, face, normal, direction, face_part, part_offse
 
 
 @njit(nogil=True, cache=True)
-def measure(best, best_target, flown, ray_index, range_min, range_max, keys,  # noqa: ANN001
-            sigmas):  # noqa: ANN001, ANN201
-    """The range gate, the range error and the point-record columns of the pulses that return.
+def measure(best, best_target, flown, ray_index, range_min, range_max, kinds,  # noqa: ANN001
+            keys, params):  # noqa: ANN001, ANN201
+    """The range gate, the range errors and the point-record columns of the pulses that
+    return.
 
-    ``keys``, ``sigmas``: (R, 2) Philox keys and (R,) σ (m) of the chain's range errors, in
-    chain order. Returns ``rows`` (the pulses kept, in order), the true and measured ranges,
-    and the measured and true points (sensor frame), each of the exact length.
+    ``kinds``, ``keys``, ``params``: the chain's range models in chain order, (R,) kinds,
+    (R, 2) Philox keys and (R, 2) parameters: :data:`RANGE_GAUSSIAN` (``range``: σ),
+    :data:`RANGE_SYSTEMATIC` (``range_systematic``: 1 + scale, bias) and
+    :data:`RANGE_QUANTISED` (``range_quantisation``: step, offset). Returns ``rows`` (the
+    pulses kept, in order), the true and measured ranges, and the measured and true points
+    (sensor frame, (3, M)), each of the exact length.
     """
     n = best.shape[0]
     count = 0
@@ -263,9 +269,15 @@ def measure(best, best_target, flown, ray_index, range_min, range_max, keys,  # 
             continue
         measured = r
         counter = np.uint64(ray_index[i]) + np.uint64(1)
-        for a in range(keys.shape[0]):
-            w = philox_block(counter, keys[a, 0], keys[a, 1])
-            measured = measured + ndtri(to_unit(w[0])) * sigmas[a]
+        for a in range(kinds.shape[0]):
+            if kinds[a] == RANGE_GAUSSIAN:  # R + z σ (noise.gaussian.RangeError)
+                w = philox_block(counter, keys[a, 0], keys[a, 1])
+                measured = measured + ndtri(to_unit(w[0])) * params[a, 0]
+            elif kinds[a] == RANGE_SYSTEMATIC:  # R (1 + scale) + bias
+                measured = measured * params[a, 0] + params[a, 1]
+            else:  # offset + q round((R - offset) / q), halves to even as NumPy's round
+                measured = params[a, 1] + params[a, 0] * np.round(
+                    (measured - params[a, 1]) / params[a, 0])
         rows[k] = i
         range_true[k] = r
         range_measured[k] = measured

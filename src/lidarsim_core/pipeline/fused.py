@@ -12,14 +12,15 @@ temporaries per pulse on top of the cast. When a scenario runs exactly the seed 
    into the scene frame; per target, the origin and directions in its body frame;
 2. the backend's cast of those arrays on each target (``backend.cast``, as the general path);
 3. the closest target with its face, part and incidence cosine; the range gate; the range
-   error; the measured and true points, written into arrays of the returned pulses' length;
+   errors; the measured and true points, written into arrays of the returned pulses' length;
 4. the columns that need NumPy's own transcendental functions (azimuth, elevation, incidence
    angle, intensity from the materials), computed on the returned pulses only, so that they
    are NumPy's bits.
 
 When it applies (:meth:`FusedPath.for_context`): the compiled kernels are on
-(``LIDARSIM_KERNELS`` is not ``numpy``), every noise model is the built-in ``angular`` or
-``range`` (not a subclass, not a third-party model), and the measurement stages are exactly
+(``LIDARSIM_KERNELS`` is not ``numpy``), every noise model is the built-in ``angular``,
+``range``, ``range_systematic`` or ``range_quantisation`` (not a subclass, not another model,
+not a third-party one), and the measurement stages are exactly
 the seed paper's (candidates, detection, returns, noise: no ``sensor.beam`` sub-rays,
 ``sensor.detection``, multipath, Sun or Earth, receiver, false alarms or kept undetected
 returns). Patterns, trajectories and backends may be anyone's: the path reads only the
@@ -37,6 +38,7 @@ import numpy as np
 from .. import kernels
 from ..noise.base import NoiseContext
 from ..noise.gaussian import AngularError, RangeError
+from ..noise.range_models import RangeBias, RangeQuantisation
 from ..noise.rng import stream_key
 from ..patterns.base import RayBatch
 from ..patterns.geometry import az_el_from_directions
@@ -47,6 +49,8 @@ from .stages import CandidateStage, DetectionStage, NoiseStage, SelectionStage, 
 
 #: The seed paper's measurement stages, in order: the only chain the fast path computes.
 SEED_STAGES = (CandidateStage, DetectionStage, SelectionStage, NoiseStage)
+#: The return-stage models the fast path computes (the classes themselves, not subclasses).
+RANGE_MODELS = (RangeError, RangeBias, RangeQuantisation)
 
 
 @dataclass
@@ -92,7 +96,7 @@ class FusedPath:
     def __init__(self, ctx: RunContext) -> None:
         self.ctx = ctx
         self.angular = [i for i, m in enumerate(ctx.noise) if type(m) is AngularError]
-        self.ranges = [i for i, m in enumerate(ctx.noise) if type(m) is RangeError]
+        self.ranges = [i for i, m in enumerate(ctx.noise) if type(m) in RANGE_MODELS]
 
     @classmethod
     def for_context(cls, ctx: RunContext, stages: Sequence[Stage]) -> "FusedPath | None":
@@ -101,7 +105,7 @@ class FusedPath:
             return None
         if tuple(type(stage) for stage in stages) != SEED_STAGES:
             return None
-        if not all(type(m) in (AngularError, RangeError) for m in ctx.noise):
+        if not all(type(m) is AngularError or type(m) in RANGE_MODELS for m in ctx.noise):
             return None
         if (ctx.sub_rays is not None or ctx.link is not None or ctx.spurious
                 or ctx.keep_undetected or ctx.keep_normals):
@@ -109,17 +113,47 @@ class FusedPath:
         return cls(ctx)
 
     # ---- the halves, for the pipeline and the benchmark ------------------------------------
-    def _keys(self, models: list[int], contexts: list[NoiseContext], angular: bool
+    def _keys(self, models: list[int], contexts: list[NoiseContext]
               ) -> tuple[np.ndarray, np.ndarray]:
+        """Philox keys and σ (rad) of the chain's angular errors that turn rays."""
         keys, sigmas = [], []
         for i in models:
             model, nctx = self.ctx.noise[i], contexts[i]
-            sigma = model.sigma_rad(nctx) if angular else model.sigma_m(nctx)
-            if sigma != 0.0:  # a zero σ leaves the value alone, as the model does
+            sigma = model.sigma_rad(nctx)
+            if sigma != 0.0:  # a zero σ leaves the ray alone, as the model does
                 keys.append(stream_key(nctx.seed, nctx.frame, nctx.stream))
                 sigmas.append(sigma)
         return (np.array(keys, dtype=np.uint64).reshape(-1, 2),
                 np.array(sigmas, dtype=np.float64))
+
+    def _range_models(self, contexts: list[NoiseContext]
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Kinds, Philox keys and parameters of the chain's range models that change ranges
+        (:func:`lidarsim_core.kernels.fused.measure`), in chain order."""
+        from ..kernels.fused import RANGE_GAUSSIAN, RANGE_QUANTISED, RANGE_SYSTEMATIC
+
+        kinds, keys, params = [], [], []
+        for i in self.ranges:
+            model, nctx = self.ctx.noise[i], contexts[i]
+            key = stream_key(nctx.seed, nctx.frame, nctx.stream)
+            if type(model) is RangeError:
+                sigma = model.sigma_m(nctx)
+                if sigma != 0.0:  # a zero σ leaves ranges alone, as the model does
+                    kinds.append(RANGE_GAUSSIAN)
+                    keys.append(key)
+                    params.append((sigma, 0.0))
+            elif type(model) is RangeBias:
+                o = model.options
+                if not (o.bias_m == 0.0 and o.scale == 0.0):
+                    kinds.append(RANGE_SYSTEMATIC)
+                    keys.append(key)
+                    params.append((1.0 + o.scale, o.bias_m))
+            elif model.options.step_m != 0.0:
+                kinds.append(RANGE_QUANTISED)
+                keys.append(key)
+                params.append((model.options.step_m, model.options.offset_m))
+        return (np.array(kinds, dtype=np.int64), np.array(keys, dtype=np.uint64).reshape(-1, 2),
+                np.array(params, dtype=np.float64).reshape(-1, 2))
 
     def before_cast(self, batch: RayBatch, contexts: list[NoiseContext], t_frame: float
                     ) -> CastRays:
@@ -127,7 +161,7 @@ class FusedPath:
         from ..kernels.fused import body_rays, ray_stage
 
         n = len(batch)
-        keys, sigmas = self._keys(self.angular, contexts, True)
+        keys, sigmas = self._keys(self.angular, contexts)
         posed = piece_poses(self.ctx, batch, t_frame)
         flown, scene = np.empty((n, 3)), np.empty((n, 3))
         ray_stage(np.ascontiguousarray(batch.direction, dtype=np.float64),
@@ -166,15 +200,14 @@ class FusedPath:
 
     def measure(self, rays: CastRays, best: ClosestHits, contexts: list[NoiseContext]
                 ) -> Returned:
-        """The range gate and the range error: the pulses that return, with their ranges and
+        """The range gate and the range errors: the pulses that return, with their ranges and
         points."""
         from ..kernels.fused import measure
 
-        keys, sigmas = self._keys(self.ranges, contexts, False)
         return Returned(*measure(best.distance, best.target, rays.flown,
                                  np.ascontiguousarray(rays.batch.index),
                                  float(self.ctx.sensor.range_min_m),
-                                 float(self.ctx.range_limit), keys, sigmas))
+                                 float(self.ctx.range_limit), *self._range_models(contexts)))
 
     def columns(self, rays: CastRays, best: ClosestHits, returned: Returned, t_frame: float
                 ) -> dict[str, np.ndarray]:
