@@ -78,7 +78,9 @@ SUITE = {"duration_s": 0.1, "rounds": 2, "scenes": {"tumbling-risley": {
     "simulate_over_packets": 0.0625, "simulate_over_packets_1thread": 0.0875,
     "stages_1thread": {"ns_per_ray": {"pattern": 40, "poses": 30, "cull": 20, "cast": 20,
                                       "measurement": 60, "record": 10},
-                       "pulses_after_cull": 0.16}}},
+                       "pulses_after_cull": 0.16,
+                       "fused": {"before_cast": 11, "cast": 20, "closest": 2, "measure": 4,
+                                 "columns": 7, "general_measurement": 33}}}},
     "targets": {"min_simulate_over_bare": 0.1, "tumbling_over_static_rose": None,
                 "tumbling_over_static_risley": 0.7, "risley_over_rose_static": None},
     "dataset": {"frames": 20, "in_memory_frames_per_s": 50.0, "dataset_frames_per_s": 45.0,
@@ -103,6 +105,7 @@ def test_cli_prints_the_benchmark(monkeypatch, as_json, with_suite):
             for text in ("tumbling-risley", "2.00M", "0.12", "s/p) 0.09 (1t), 0.06 (2t)",
                          "17.00M (1t)",
                          "poses 30", "0.70 (Risley)",
+                         "before_cast 11", "general path's measurement: 33",
                          "45.0 frames/s", "first frame: 0.80 s"):
                 assert text in result.output, text
 
@@ -119,6 +122,11 @@ def test_suite_scene_figures_are_consistent():
     assert all(v >= 0 for v in stages["ns_per_ray"].values())
     assert stages["ns_per_ray"]["poses"] > 0  # the tumbling target has a pose per ray
     assert 0 < stages["pulses_after_cull"] <= 1
+    # the scene runs the fast path: each of its parts is timed
+    fused = stages["fused"]
+    assert set(fused) == {"before_cast", "cast", "closest", "measure", "columns",
+                          "general_measurement"}
+    assert all(v > 0 for v in fused.values())
     for suffix in ("", "_1thread"):
         bare = scene[f"bare_embree{suffix}"]
         if bare is None:

@@ -173,6 +173,11 @@ def test_simulation_reraises_an_interrupt_surfacing_through_a_kernel(monkeypatch
         raise _surfacing_through_a_kernel(term)
 
     monkeypatch.setattr("lidarsim_core.pipeline.simulation.process_piece", interrupted)
-    with pytest.raises(Terminated) as info:
-        sim.run_frame(0)
-    assert info.value is term
+    fused = sim.fused  # the compiled fast path of the seed paper's model, where it applies
+    if fused is not None:
+        monkeypatch.setattr(fused, "process", interrupted)
+    for path in ([fused, None] if fused is not None else [None]):
+        sim.fused = path
+        with pytest.raises(Terminated) as info:
+            sim.run_frame(0)
+        assert info.value is term

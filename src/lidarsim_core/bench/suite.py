@@ -18,7 +18,8 @@ interleaved rounds (:func:`lidarsim_core.bench.timing.interleaved_best`):
   the CPU traces them natively; :func:`lidarsim_core.bench.timing.packet_embree_probe`), and
   the simulation over it;
 * ``stages_1thread``: nanoseconds per emitted ray of each stage on one thread (pattern, poses,
-  cull, cast, measurement, record; :func:`suite_stages`).
+  cull, cast, measurement, record; :func:`suite_stages`), and where the scene runs the fast
+  path (:mod:`lidarsim_core.pipeline.fused`), its own parts under ``fused`` (:func:`fused_stages`).
 
 :func:`bench_dataset` compares a serial ``lidarsim dataset`` run on a tumbling sequence with
 simulating the same frames in memory.
@@ -273,13 +274,45 @@ def suite_stages(sim: Any, frame: int = 0, rounds: int = 3) -> dict[str, Any]:
         "process": lambda: process_piece(sim.context, sim.stages, kept, contexts, t_frame, frame),
         "record": lambda: PointCloud.concatenate([columns], sim.frame_info(frame)),
     }
+    fused = sim.fused
+    if fused is not None:  # the pipeline's piece: the fast path (the general one is "general")
+        probes["process"] = lambda: fused.process(kept, contexts, t_frame)
+        probes["general"] = lambda: process_piece(sim.context, sim.stages, kept, contexts,
+                                                  t_frame, frame)
     best = with_threads(1, lambda: interleaved_best(probes, rounds)[0])
     ns = {key: 1e9 * seconds / n for key, seconds in best.items()}
     process = ns.pop("process")
     ns["measurement"] = max(0.0, process - ns["cast"])
-    return {"ns_per_ray": {key: ns[key] for key in
-                           ("pattern", "poses", "cull", "cast", "measurement", "record")},
-            "pulses_after_cull": len(kept) / n if n else None}
+    out: dict[str, Any] = {"ns_per_ray": {key: ns[key] for key in
+                                          ("pattern", "poses", "cull", "cast", "measurement",
+                                           "record")},
+                           "pulses_after_cull": len(kept) / n if n else None}
+    if fused is not None:
+        out["fused"] = fused_stages(fused, kept, contexts, t_frame, n, rounds)
+        out["fused"]["general_measurement"] = max(0.0, ns["general"] - ns["cast"])
+    return out
+
+
+def fused_stages(fused: Any, batch: Any, contexts: list[Any], t_frame: float, emitted: int,
+                 rounds: int = 3) -> dict[str, float]:
+    """Nanoseconds per emitted ray of each part of the fast path on one piece
+    (:class:`lidarsim_core.pipeline.fused.FusedPath`), one thread: ``before_cast`` (angular
+    error and frame changes), ``cast`` (the backend on every target), ``closest`` (closest
+    target, face, part, incidence), ``measure`` (range gate, range error, points) and
+    ``columns`` (the other record columns, in NumPy)."""
+    rays = fused.before_cast(batch, contexts, t_frame)
+    hits = fused.cast(rays)
+    best = fused.closest(rays, hits)
+    returned = fused.measure(rays, best, contexts)
+    probes = {
+        "before_cast": lambda: fused.before_cast(batch, contexts, t_frame),
+        "cast": lambda: fused.cast(rays),
+        "closest": lambda: fused.closest(rays, hits),
+        "measure": lambda: fused.measure(rays, best, contexts),
+        "columns": lambda: fused.columns(rays, best, returned, t_frame),
+    }
+    seconds = with_threads(1, lambda: interleaved_best(probes, rounds)[0])
+    return {key: 1e9 * value / emitted if emitted else 0.0 for key, value in seconds.items()}
 
 
 def bench_suite_scene(name: str, *, duration_s: float = 1.0, rounds: int = 5,

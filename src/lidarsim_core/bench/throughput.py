@@ -85,7 +85,8 @@ def pipeline_stages(sim: Any, frame: int = 0, rounds: int = 5) -> dict[str, Any]
     ``pattern``: the scan pattern's rays; ``cull``: deciding which pulses may reach a target
     (:mod:`lidarsim_core.pipeline.cull`); ``cast``: ``backend.cast`` of the remaining pulses;
     ``rest``: everything else of :func:`lidarsim_core.pipeline.cast.process_piece` on
-    them (angular error, frame changes, returns, range error, the point record).
+    them (angular error, frame changes, returns, range error, the point record), or of the
+    fast path (:mod:`lidarsim_core.pipeline.fused`) where the scenario runs it.
     """
     k0, k1 = sim.frame_rays(frame)
     n = k1 - k0
@@ -106,7 +107,9 @@ def pipeline_stages(sim: Any, frame: int = 0, rounds: int = 5) -> dict[str, Any]
     def cast() -> Any:
         return sim.backend.cast(target, *bodies[0])
 
-    def process() -> Any:
+    def process() -> Any:  # the path the pipeline takes: the fast one where it applies
+        if sim.fused is not None:
+            return sim.fused.process(kept, contexts, t_frame)
         return process_piece(sim.context, sim.stages, kept, contexts, t_frame, frame)
 
     def run() -> dict[str, float]:

@@ -21,6 +21,9 @@ loops instead:
 * :mod:`.embree_cast`: Embree's ``rtcIntersect1``/``rtcIntersect4/8/16`` called by address
   (the Embree backend passes the addresses and the scene at run time), with the float64
   shift of each ray before it and the float64 distance refinement after it in the same loop;
+* :mod:`.fused`: the seed paper's model after culling, around the cast (angular error with
+  the inverse normal CDF, frame changes, closest target, range gate, range error, the
+  record's points; :mod:`lidarsim_core.pipeline.fused`);
 * :mod:`.cull`: a conservative test that skips pulses which cannot reach any target's
   bounding box, even after their angular error and beam divergence, before anything else is
   computed for them.
@@ -94,6 +97,7 @@ def _warm_up_calls() -> list[tuple[str, Callable[[], Any], Any]]:
 
     from .cull import cull_by_grid, cull_by_grid_cones, cull_posed, direction_grid, motion_bound
     from .embree_cast import cast_faces, cast_refined
+    from .fused import body_rays, closest_hit, measure, normals, ray_stage
     from .patterns import cycle_rays, lissajous_directions, spinning_directions
     from .philox import ray_uniforms
     from .poses import chain_matrices, look_at_matrices
@@ -157,6 +161,20 @@ def _warm_up_calls() -> list[tuple[str, Callable[[], Any], Any]]:
                                                    np.ones(1)), chain_matrices),
         ("look-at", lambda: look_at_matrices(one, np.zeros(3), np.array([0.0, 0.0, 1.0])),
          look_at_matrices),
+        ("normals", lambda: normals(np.zeros(2, dtype=np.uint64), index, 2), normals),
+        ("fused ray stage", lambda: ray_stage(one, index, np.zeros((1, 2), dtype=np.uint64),
+                                              np.ones(1), np.eye(3)[None], np.empty((1, 3)),
+                                              np.empty((1, 3))), ray_stage),
+        ("fused body rays", lambda: body_rays(one, one, one, np.eye(3)[None], np.empty((1, 3)),
+                                              np.empty((1, 3))), body_rays),
+        ("fused closest hit", lambda: closest_hit(
+            0, np.ones(1), index, one, one, np.zeros(1, dtype=np.int32), 0, np.full(1, np.inf),
+            np.full(1, -1, dtype=np.int16), np.full(1, -1, dtype=np.int64),
+            np.full(1, -1, dtype=np.int16), np.zeros(1)), closest_hit),
+        ("fused measure", lambda: measure(np.ones(1), np.zeros(1, dtype=np.int16), one, index,
+                                          0.0, 2.0, np.zeros(1, dtype=np.int64),
+                                          np.zeros((1, 2), dtype=np.uint64),
+                                          np.ones((1, 2))), measure),
     ]
 
 

@@ -67,6 +67,7 @@ from .cast import process_piece
 from .context import RunContext, Target
 from .cull import PulseCuller, culled_piece
 from .frameinfo import frame_infos
+from .fused import FusedPath
 from .inside import check_sensor_outside
 from .stages import Stage, measurement_stages
 from .units import warn_about_units
@@ -130,6 +131,8 @@ class Simulation:
         check_simulation(self.context)  # the resource budget, before any ray is generated
         #: Plan for skipping pulses that cannot reach a target (None: every pulse is cast).
         self.culler: PulseCuller | None = PulseCuller.for_context(self.context)
+        #: The compiled path of the seed paper's model (None: the general path, :mod:`.fused`).
+        self.fused: FusedPath | None = FusedPath.for_context(self.context, self.stages)
         # third-party components that fail mid-run are reported with their name
         parts: list[tuple[str, Any]] = [("scan_pattern", pattern), ("ray_backend", backend),
                                         ("trajectory", sensor_trajectory)]
@@ -194,6 +197,8 @@ class Simulation:
             # only pulses that may reach a target go on, with their rays and poses
             batch = culled_piece(ctx, self.culler,
                                  np.arange(piece[1], piece[2], dtype=np.int64), t_frame)
+            if self.fused is not None:  # the seed paper's model, compiled: the same bits
+                return self.fused.process(batch, contexts, t_frame)
             return process_piece(ctx, self.stages, batch, contexts, t_frame, frame)
 
         def merged(parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:

@@ -1,0 +1,288 @@
+"""The seed paper's per-pulse model after culling, as compiled loops around the cast
+(:mod:`lidarsim_core.pipeline.fused` decides when it applies and calls them).
+
+A piece of pulses goes through three kernels and the backend's cast:
+
+1. :func:`ray_stage`: the angular error of every ``angular`` model of the noise chain (Philox
+   uniforms, inverse-CDF normals, the two rotations), then the flown direction turned into
+   the scene frame by the sensor's pose;
+2. :func:`body_rays`: per target, the sensor's origin and that direction in the target's body
+   frame (the arrays the backend casts);
+3. the cast (the backend's ``intersect``, per target);
+4. :func:`closest_hit` (per target, in scenario order): the closest target wins, with its
+   face, part and incidence cosine; :func:`measure`: the range gate, the range error of every
+   ``range`` model, and the point-record columns of the pulses that return, written into
+   arrays of their exact length.
+
+Every operation is the NumPy reference's (:mod:`lidarsim_core.pipeline.cast`, the stages,
+:func:`lidarsim_core.geometry.frames.rotate`), in the same order, without fused multiply-adds,
+so the results are the same bits. The inverse normal CDF is Cephes' ``ndtri`` as SciPy
+ships it (:func:`ndtri`: the same polynomials and the C library's ``log`` and ``sqrt``); the
+tests compare it with ``scipy.special.ndtri`` on millions of uniforms. The work per pulse is
+in ``inline`` helpers (:func:`turn_ray`, :func:`matvec`), so that a loop over blocks of rays
+can later call Embree between the two halves without another pass over memory.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from .philox import philox_block, to_unit
+
+# Cephes ndtri (scipy/xsf include/xsf/cephes/ndtri.h): rational approximations of the
+# inverse normal CDF on |y - 1/2| <= 3/8, then on z = sqrt(-2 log y) in [2, 8) and [8, 64)
+_P0 = (-5.99633501014107895267E1, 9.80010754185999661536E1, -5.66762857469070293439E1,
+       1.39312609387279679503E1, -1.23916583867381258016E0)
+_Q0 = (1.95448858338141759834E0, 4.67627912898881538453E0, 8.63602421390890590575E1,
+       -2.25462687854119370527E2, 2.00260212380060660359E2, -8.20372256168333339912E1,
+       1.59056225126211695515E1, -1.18331621121330003142E0)
+_P1 = (4.05544892305962419923E0, 3.15251094599893866154E1, 5.71628192246421288162E1,
+       4.40805073893200834700E1, 1.46849561928858024014E1, 2.18663306850790267539E0,
+       -1.40256079171354495875E-1, -3.50424626827848203418E-2, -8.57456785154685413611E-4)
+_Q1 = (1.57799883256466749731E1, 4.53907635128879210584E1, 4.13172038254672030440E1,
+       1.50425385692907503408E1, 2.50464946208309415979E0, -1.42182922854787788574E-1,
+       -3.80806407691578277194E-2, -9.33259480895457427372E-4)
+_P2 = (3.23774891776946035970E0, 6.91522889068984211695E0, 3.93881025292474443415E0,
+       1.33303460815807542389E0, 2.01485389549179081538E-1, 1.23716634817820021358E-2,
+       3.01581553508235416007E-4, 2.65806974686737550832E-6, 6.23974539184983293730E-9)
+_Q2 = (6.02427039364742014255E0, 3.67983563856160859403E0, 1.37702099489081330271E0,
+       2.16236993594496635890E-1, 1.34204006088543189037E-2, 3.28014464682127739104E-4,
+       2.89247864745380683936E-6, 6.79019408009981274425E-9)
+_SQRT2PI = 2.50662827463100050242E0
+_EXP_M2 = 0.13533528323661269189  # exp(-2)
+#: Kinds of the return-stage range models :func:`measure` applies.
+RANGE_GAUSSIAN, RANGE_SYSTEMATIC, RANGE_QUANTISED = 0, 1, 2
+
+
+@njit(inline="always", cache=True)
+def ndtri(y0):  # noqa: ANN001, ANN201
+    """Inverse of the standard normal CDF for ``0 < y0 < 1`` (SciPy's ``ndtri``, bit for
+    bit: the uniforms of :mod:`lidarsim_core.noise.rng` never reach 0 or 1).
+
+    Cephes' Horner evaluations (``polevl``, and ``p1evl`` with its implied leading 1) are
+    written out, in their order of operations.
+    """
+    negate = True
+    y = y0
+    if y > 1.0 - _EXP_M2:
+        y = 1.0 - y
+        negate = False
+    if y > _EXP_M2:
+        y = y - 0.5
+        y2 = y * y
+        p = ((((_P0[0] * y2 + _P0[1]) * y2 + _P0[2]) * y2 + _P0[3]) * y2 + _P0[4])
+        q = y2 + _Q0[0]
+        q = q * y2 + _Q0[1]
+        q = q * y2 + _Q0[2]
+        q = q * y2 + _Q0[3]
+        q = q * y2 + _Q0[4]
+        q = q * y2 + _Q0[5]
+        q = q * y2 + _Q0[6]
+        q = q * y2 + _Q0[7]
+        x = y + y * (y2 * p / q)
+        return x * _SQRT2PI
+    x = math.sqrt(-2.0 * math.log(y))
+    x0 = x - math.log(x) / x
+    z = 1.0 / x
+    if x < 8.0:
+        x1 = z * _polevl9(z, _P1) / _p1evl8(z, _Q1)
+    else:
+        x1 = z * _polevl9(z, _P2) / _p1evl8(z, _Q2)
+    x = x0 - x1
+    return -x if negate else x
+
+
+@njit(inline="always", cache=True)
+def _polevl9(x, c):  # noqa: ANN001, ANN202 - c0 x^8 + ... + c8, Cephes' Horner order
+    a = c[0]
+    a = a * x + c[1]
+    a = a * x + c[2]
+    a = a * x + c[3]
+    a = a * x + c[4]
+    a = a * x + c[5]
+    a = a * x + c[6]
+    a = a * x + c[7]
+    return a * x + c[8]
+
+
+@njit(inline="always", cache=True)
+def _p1evl8(x, c):  # noqa: ANN001, ANN202 - x^8 + c0 x^7 + ... + c7 (leading 1 implied)
+    a = x + c[0]
+    a = a * x + c[1]
+    a = a * x + c[2]
+    a = a * x + c[3]
+    a = a * x + c[4]
+    a = a * x + c[5]
+    a = a * x + c[6]
+    return a * x + c[7]
+
+
+@njit(nogil=True, cache=True)
+def normals(key, ray_index, draws):  # noqa: ANN001, ANN201
+    """(N, draws) :func:`lidarsim_core.noise.rng.ray_normals` of a stream (its Philox
+    ``key``), computed here (the reference for the tests of :func:`ndtri`)."""
+    blocks = (draws + 3) // 4
+    out = np.empty((ray_index.shape[0], draws))
+    for row in range(ray_index.shape[0]):
+        base = np.uint64(ray_index[row]) * np.uint64(blocks) + np.uint64(1)
+        for block in range(blocks):
+            w = philox_block(base + np.uint64(block), key[0], key[1])
+            for j in range(4):
+                if 4 * block + j < draws:
+                    out[row, 4 * block + j] = ndtri(to_unit(w[j]))
+    return out
+
+
+@njit(inline="always", cache=True)
+def turn_ray(x, y, z, a1, a2):  # noqa: ANN001, ANN201
+    """A direction turned by ``a1`` about u, then ``a2`` about v (the angular error,
+    :func:`lidarsim_core.kernels.rotation.rotate_two_angles`'s arithmetic)."""
+    if abs(z) > 0.9:
+        ux, uy, uz = z, 0.0, -x
+    else:
+        ux, uy, uz = -y, x, 0.0
+    norm = math.sqrt(ux * ux + uy * uy + uz * uz)
+    ux /= norm
+    uy /= norm
+    uz /= norm
+    vx, vy, vz = y * uz - z * uy, z * ux - x * uz, x * uy - y * ux
+    c1, s1 = math.cos(a1), math.sin(a1)
+    c2, s2 = math.cos(a2), math.sin(a2)
+    cc, cs = c1 * c2, c1 * s2
+    return (cc * x + cs * ux - s1 * vx, cc * y + cs * uy - s1 * vy, cc * z + cs * uz - s1 * vz)
+
+
+@njit(inline="always", cache=True)
+def matvec(m, x, y, z, inverse):  # noqa: ANN001, ANN201
+    """``M v`` (or ``Mᵀ v``) of one 3×3 matrix, summed as
+    :func:`lidarsim_core.geometry.frames.rotate` does: ``(x·a + y·b) + z·c``."""
+    if inverse:
+        return ((x * m[0, 0] + y * m[1, 0]) + z * m[2, 0],
+                (x * m[0, 1] + y * m[1, 1]) + z * m[2, 1],
+                (x * m[0, 2] + y * m[1, 2]) + z * m[2, 2])
+    return ((x * m[0, 0] + y * m[0, 1]) + z * m[0, 2],
+            (x * m[1, 0] + y * m[1, 1]) + z * m[1, 2],
+            (x * m[2, 0] + y * m[2, 1]) + z * m[2, 2])
+
+
+@njit(nogil=True, cache=True)
+def ray_stage(direction, ray_index, keys, sigmas, sensor_matrix, flown, scene):  # noqa: ANN001
+    """Write the flown directions (sensor frame) and their scene-frame rotations.
+
+    Parameters
+    ----------
+    direction
+        (N, 3) nominal directions.
+    ray_index
+        (N,) int64 global ray indices.
+    keys, sigmas
+        (A, 2) uint64 Philox keys and (A,) σ (rad) of the chain's angular errors, in chain
+        order (σ > 0).
+    sensor_matrix
+        (1 or N, 3, 3) the sensor's body→scene rotations.
+    flown, scene
+        (N, 3) outputs.
+    """
+    shared = sensor_matrix.shape[0] == 1
+    for i in range(direction.shape[0]):
+        x, y, z = direction[i, 0], direction[i, 1], direction[i, 2]
+        counter = np.uint64(ray_index[i]) + np.uint64(1)  # one block: two draws per ray
+        for a in range(keys.shape[0]):
+            w = philox_block(counter, keys[a, 0], keys[a, 1])
+            a1 = ndtri(to_unit(w[0])) * sigmas[a]
+            a2 = ndtri(to_unit(w[1])) * sigmas[a]
+            x, y, z = turn_ray(x, y, z, a1, a2)
+        flown[i, 0], flown[i, 1], flown[i, 2] = x, y, z
+        m = sensor_matrix[0] if shared else sensor_matrix[i]
+        scene[i, 0], scene[i, 1], scene[i, 2] = matvec(m, x, y, z, False)
+
+
+@njit(nogil=True, cache=True)
+def body_rays(scene, sensor_position, position, matrix, origin_out, direction_out):  # noqa: ANN001
+    """Write the sensor's origin and the scene-frame directions in one target's body frame
+    (:func:`lidarsim_core.geometry.frames.to_body` and ``rotate(..., inverse=True)``).
+
+    ``sensor_position`` (1 or N, 3), ``position`` (1 or N, 3) and ``matrix`` (1 or N, 3, 3)
+    are the sensor's and the target's poses; a single row serves every ray.
+    """
+    for i in range(scene.shape[0]):
+        s = 0 if sensor_position.shape[0] == 1 else i
+        p = 0 if position.shape[0] == 1 else i
+        m = matrix[0] if matrix.shape[0] == 1 else matrix[i]
+        rx = sensor_position[s, 0] - position[p, 0]
+        ry = sensor_position[s, 1] - position[p, 1]
+        rz = sensor_position[s, 2] - position[p, 2]
+        origin_out[i, 0], origin_out[i, 1], origin_out[i, 2] = matvec(m, rx, ry, rz, True)
+        direction_out[i, 0], direction_out[i, 1], direction_out[i, 2] = matvec(
+            m, scene[i, 0], scene[i, 1], scene[i, 2], True)
+
+
+@njit(nogil=True, cache=True)
+def closest_hit(target, distance, face, normal, direction, face_part, part_offset,
+                best, best_target, best_face, best_part, cos_incidence):  # noqa: ANN001
+    """Keep target ``target``'s hits that are closer than the best so far (targets are
+    visited in scenario order; a tie keeps the earlier one), with their face, part and
+    incidence cosine ``|n · d|`` in its body frame."""
+    for i in range(distance.shape[0]):
+        f = face[i]
+        d = distance[i]
+        if f >= 0 and d < best[i]:
+            best[i] = d
+            best_target[i] = target
+            best_face[i] = f
+            best_part[i] = face_part[f] + part_offset
+            dot = (normal[i, 0] * direction[i, 0] + normal[i, 1] * direction[i, 1]) + \
+                normal[i, 2] * direction[i, 2]
+            cos_incidence[i] = abs(dot)
+
+
+@njit(nogil=True, cache=True)
+def measure(best, best_target, flown, ray_index, range_min, range_max, kinds,  # noqa: ANN001
+            keys, params):  # noqa: ANN001, ANN201
+    """The range gate, the range errors and the point-record columns of the pulses that
+    return.
+
+    ``kinds``, ``keys``, ``params``: the chain's range models in chain order, (R,) kinds,
+    (R, 2) Philox keys and (R, 2) parameters: :data:`RANGE_GAUSSIAN` (``range``: σ),
+    :data:`RANGE_SYSTEMATIC` (``range_systematic``: 1 + scale, bias) and
+    :data:`RANGE_QUANTISED` (``range_quantisation``: step, offset). Returns ``rows`` (the
+    pulses kept, in order), the true and measured ranges, and the measured and true points
+    (sensor frame, (3, M)), each of the exact length.
+    """
+    n = best.shape[0]
+    count = 0
+    for i in range(n):
+        if best_target[i] >= 0 and best[i] >= range_min and best[i] <= range_max:
+            count += 1
+    rows = np.empty(count, dtype=np.int64)
+    range_true = np.empty(count)
+    range_measured = np.empty(count)
+    point = np.empty((3, count))
+    truth = np.empty((3, count))
+    k = 0
+    for i in range(n):
+        r = best[i]
+        if not (best_target[i] >= 0 and r >= range_min and r <= range_max):
+            continue
+        measured = r
+        counter = np.uint64(ray_index[i]) + np.uint64(1)
+        for a in range(kinds.shape[0]):
+            if kinds[a] == RANGE_GAUSSIAN:  # R + z σ (noise.gaussian.RangeError)
+                w = philox_block(counter, keys[a, 0], keys[a, 1])
+                measured = measured + ndtri(to_unit(w[0])) * params[a, 0]
+            elif kinds[a] == RANGE_SYSTEMATIC:  # R (1 + scale) + bias
+                measured = measured * params[a, 0] + params[a, 1]
+            else:  # offset + q round((R - offset) / q), halves to even as NumPy's round
+                measured = params[a, 1] + params[a, 0] * np.round(
+                    (measured - params[a, 1]) / params[a, 0])
+        rows[k] = i
+        range_true[k] = r
+        range_measured[k] = measured
+        for c in range(3):
+            point[c, k] = flown[i, c] * measured
+            truth[c, k] = flown[i, c] * r
+        k += 1
+    return rows, range_true, range_measured, point, truth
