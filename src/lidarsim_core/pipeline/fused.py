@@ -20,7 +20,8 @@ temporaries per pulse on top of the cast. When a scenario runs exactly the seed 
 When it applies (:meth:`FusedPath.for_context`): the compiled kernels are on
 (``LIDARSIM_KERNELS`` is not ``numpy``), every noise model is the built-in ``angular``,
 ``range``, ``range_systematic`` or ``range_quantisation`` (not a subclass, not another model,
-not a third-party one), and the measurement stages are exactly
+not a third-party one), the normals are the seed paper's inverse CDF (``normals:
+inverse_cdf``), and the measurement stages are exactly
 the seed paper's (candidates, detection, returns, noise: no ``sensor.beam`` sub-rays,
 ``sensor.detection``, multipath, Sun or Earth, receiver, false alarms or kept undetected
 returns). Patterns, trajectories and backends may be anyone's: the path reads only the
@@ -39,7 +40,7 @@ from .. import kernels
 from ..noise.base import NoiseContext
 from ..noise.gaussian import AngularError, RangeError
 from ..noise.range_models import RangeBias, RangeQuantisation
-from ..noise.rng import stream_key
+from ..noise.rng import INVERSE_CDF, stream_key
 from ..patterns.base import RayBatch
 from ..patterns.geometry import az_el_from_directions
 from .bodyframe import body_frame_columns
@@ -106,6 +107,8 @@ class FusedPath:
         if tuple(type(stage) for stage in stages) != SEED_STAGES:
             return None
         if not all(type(m) is AngularError or type(m) in RANGE_MODELS for m in ctx.noise):
+            return None
+        if ctx.scenario.normals != INVERSE_CDF:  # the kernels draw the seed paper's normals
             return None
         if (ctx.sub_rays is not None or ctx.link is not None or ctx.spurious
                 or ctx.keep_undetected or ctx.keep_normals):
