@@ -129,6 +129,7 @@ class PlyExporter(Exporter):
 
     name = "ply"
     suffixes = (".ply",)
+    memory_stream = True
     Options = PlyOptions
     options: PlyOptions
 

@@ -48,14 +48,16 @@ def sha256_file(path: str | Path) -> str:
     return digest.hexdigest()
 
 
-def sidecar_record(path: str | Path, points: "PointSource", exporter: "Exporter"
-                   ) -> dict[str, Any]:
-    """The sidecar content for the finished file ``path`` holding ``points``."""
+def sidecar_record(path: str | Path, points: "PointSource", exporter: "Exporter", *,
+                   size: int | None = None, sha256: str | None = None) -> dict[str, Any]:
+    """The sidecar content for the finished file ``path`` holding ``points``; its ``size``
+    and ``sha256`` are read from the file unless given (from the bytes just written)."""
     path = Path(path)
     return {"format": SIDECAR_FORMAT, "version": SIDECAR_VERSION, "file": path.name,
             "exporter": exporter.name, "points": len(points),
             "columns": [[name, dtype.name] for name, dtype in points.fields.items()],
-            "bytes": path.stat().st_size, "sha256": sha256_file(path),
+            "bytes": path.stat().st_size if size is None else size,
+            "sha256": sha256_file(path) if sha256 is None else sha256,
             "frame": points.frame.to_dict()}
 
 
