@@ -34,6 +34,7 @@ Written chunk by chunk from NumPy structured arrays: the format is a header plus
 
 from __future__ import annotations
 
+import functools
 import json
 from pathlib import Path
 from typing import IO, TYPE_CHECKING, Any
@@ -105,6 +106,12 @@ def _check_fits(column: str, values: np.ndarray, ply: str, out: str) -> None:
 
 
 def _names_comments(kind: str, names: list[str]) -> list[str]:
+    return list(_names_lines(kind, tuple(names)))
+
+
+@functools.lru_cache(maxsize=64)
+def _names_lines(kind: str, names: tuple[str, ...]) -> tuple[str, ...]:
+    # the same names in every frame of a sequence: made once
     lines = []
     for i, name in enumerate(names):
         text = json.dumps(name, ensure_ascii=True)
@@ -112,7 +119,7 @@ def _names_comments(kind: str, names: list[str]) -> list[str]:
             raise OutputError(f"{kind} name {name[:40]!r}... is too long for a PLY header line",
                               field=f"{kind}_names")
         lines.append(f"comment lidarsim-{kind} {i} {text}")
-    return lines
+    return tuple(lines)
 
 
 class PlyOptions(DialectOptions):
@@ -147,6 +154,15 @@ class PlyExporter(Exporter):
         header.append("end_header")
         stream.write(("\n".join(header) + "\n").encode("ascii"))
         dtype = [(n, out) for n, _, out in layout]
+        records = points.records()
+        if records is not None:  # one conversion; the same bytes as column by column
+            for column, ply, out in layout:
+                kind = records.dtype[column]
+                if kind.kind in "iu" and not (np.dtype(out).kind in "iu" and
+                                              np.can_cast(kind, out, "safe")):
+                    _check_fits(column, records[column], ply, out)
+            stream.write(records.astype(dtype).tobytes())
+            return
         for chunk in points.iter_chunks([n for n, _, _ in layout]):
             data = np.empty(len(chunk["x"]), dtype=dtype)
             for column, ply, out in layout:
