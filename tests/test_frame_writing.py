@@ -17,7 +17,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from lidarsim_core.base import atomic
-from lidarsim_core.base.atomic import atomic_output, check_target, write_bytes_atomic
+from lidarsim_core.base.atomic import atomic_output, write_bytes_atomic
 from lidarsim_core.base.errors import OutputError
 from lidarsim_core.base.jsontext import indented_json
 from lidarsim_core.io import write as write_module
@@ -99,7 +99,6 @@ def test_write_bytes_atomic_refuses_what_atomic_output_refuses(tmp_path, case):
 
     expected = _refusal(stream)
     assert _refusal(lambda: write_bytes_atomic(path, b"new", overwrite=overwrite)) == expected
-    assert _refusal(lambda: check_target(path, overwrite=overwrite)) == expected
     assert not [p for p in tmp_path.rglob("*") if p.name.endswith(".part")]
 
 

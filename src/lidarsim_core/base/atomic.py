@@ -4,6 +4,7 @@ failed or interrupted run leaves the previous file or none, never a partial one.
 from __future__ import annotations
 
 import os
+import random
 import secrets
 import stat
 import sys
@@ -95,17 +96,6 @@ def _check_existing(path: Path, overwrite: bool) -> bool:
     return True
 
 
-def check_target(path: str | Path, *, overwrite: bool = True) -> None:
-    """Refuse ``path`` as an output as :func:`atomic_output` would before writing (a
-    directory, a missing directory, an existing file without ``overwrite``, a device...), so
-    that a caller can check before encoding its data in memory."""
-    path = Path(path)
-    if not _check_existing(path, overwrite):
-        parent = path.parent if str(path.parent) else Path(".")
-        if not parent.is_dir():
-            raise OutputError(f"output directory does not exist: {parent}", source=path)
-
-
 def write_bytes_atomic(path: str | Path, data: bytes | bytearray | memoryview, *,
                        overwrite: bool = True) -> Path:
     """Write ``data`` to ``path`` as :func:`atomic_output` does (a hidden temporary file
@@ -127,11 +117,18 @@ def write_bytes_atomic(path: str | Path, data: bytes | bytearray | memoryview, *
     target = os.fspath(path)
     _check_existing(path, overwrite)
     parent, name = os.path.split(target)
-    tmp: str | None = os.path.join(parent, f".{name}.{secrets.token_hex(6)}.part")
+    tmp: str | None = None
     try:
         try:
-            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0),
-                         0o666)
+            for attempt in range(8):  # a name taken (a leftover) is never ours: another
+                tmp = os.path.join(parent, f".{name}.{_token()}.part")
+                try:
+                    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL |
+                                 getattr(os, "O_BINARY", 0), 0o666)
+                    break
+                except FileExistsError:
+                    if attempt == 7:
+                        raise
         except PermissionError:
             tmp = None
             raise OutputError(f"output directory is not writable: {parent or '.'}",
@@ -165,6 +162,19 @@ def write_bytes_atomic(path: str | Path, data: bytes | bytearray | memoryview, *
             raise OutputError(f"cannot write: {describe_os_error(exc)}", source=path) from exc
         raise
     return path
+
+
+_tokens = threading.local()
+
+
+def _token() -> str:
+    """12 random hex digits for a temporary name, without a system call each (as
+    ``secrets.token_hex(6)`` makes): a generator seeded from the system once per thread and
+    process."""
+    pid = os.getpid()
+    if getattr(_tokens, "pid", None) != pid:  # a forked child must not repeat its parent
+        _tokens.pid, _tokens.random = pid, random.Random(secrets.token_bytes(16))
+    return f"{_tokens.random.getrandbits(48):012x}"
 
 
 def write_text_atomic(path: str | Path, text: str, *, overwrite: bool = True) -> Path:

@@ -16,7 +16,7 @@ import io
 from pathlib import Path
 from typing import Any
 
-from ..base.atomic import atomic_output, check_target, write_bytes_atomic
+from ..base.atomic import atomic_output, write_bytes_atomic
 from ..base.errors import UserInputError
 from .base import Exporter
 from .points import DEFAULT_SPOOL_MEMORY, PointSource
@@ -70,7 +70,6 @@ def write_points_file(points: PointSource, path: str | Path, exporter: Exporter,
         The sidecar record (file name, exporter, point count, columns, size, SHA-256, frame).
     """
     if _buffered(points, exporter):
-        check_target(path, overwrite=overwrite)  # refused before any work, as a stream is
         data = encode_points(points, exporter, path)
         try:
             write_bytes_atomic(path, data, overwrite=overwrite)
