@@ -49,6 +49,14 @@ def test_indented_json_matches_on_unusual_values(value):
     assert indented_json(value) == json.dumps(value, indent=1, sort_keys=True)
 
 
+def test_indented_json_memo_never_mixes_equal_keys():
+    # (1,), (1.0,) and (True,) are equal as keys, as are (0.0,) and (-0.0,): not their texts
+    for value in [(1,), (1.0,), (True,), (0.0,), (-0.0,), ("a",), (("a", "b"),), (("a",),),
+                  {"c": (("x", "float64"),)}, {"c": (("x", "float64"),)}]:
+        assert indented_json(value) == json.dumps(value, indent=1, sort_keys=True)
+        assert indented_json([value]) == json.dumps([value], indent=1, sort_keys=True)
+
+
 def test_indented_json_raises_what_json_raises():
     with pytest.raises(TypeError):
         indented_json({"a": object()})

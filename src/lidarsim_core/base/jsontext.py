@@ -6,6 +6,8 @@ frame's checksum. :func:`indented_json` builds the same text by direct recursion
 string escaper and the same number formatting, and falls back to :func:`json.dumps` for
 anything but plain ``dict``/``list``/``tuple``/``str``/``int``/``float``/``bool``/``None``
 (subclasses, non-string keys...), so the text is always what :func:`json.dumps` gives.
+Tuples of strings (and of tuples of strings), which cannot change, are encoded once per value:
+a caller that passes the parts that repeat from call to call so pays for them once.
 """
 
 from __future__ import annotations
@@ -15,6 +17,10 @@ from json.encoder import encode_basestring_ascii
 from typing import Any, Callable
 
 _INFINITY = float("inf")
+#: Encoded tuples by ``(indent level, value)`` (a sidecar's column list is the same in every
+#: frame of a sequence), at most :data:`_TUPLES_KEPT` of them.
+_TUPLES: dict[tuple[int, tuple], str] = {}
+_TUPLES_KEPT = 64
 
 
 class _Unusual(Exception):
@@ -45,6 +51,21 @@ _SCALARS: dict[type, Callable[[Any], str]] = {
     type(None): _none}
 
 
+def _text_only(value: tuple) -> bool:
+    """Whether ``value`` holds only strings and tuples of strings: the values a memo may key
+    on (numbers may not: ``(1,)``, ``(1.0,)`` and ``(True,)`` are equal keys, their texts
+    are not)."""
+    for item in value:
+        if type(item) is str:
+            continue
+        if type(item) is not tuple:
+            return False
+        for inner in item:
+            if type(inner) is not str:
+                return False
+    return True
+
+
 def _encode(value: Any, level: int, out: list[str]) -> None:
     kind = type(value)
     scalar = _SCALARS.get(kind)
@@ -65,6 +86,17 @@ def _encode(value: Any, level: int, out: list[str]) -> None:
             first = False
             _encode(value[key], level + 1, out)
         out.append("\n" + " " * level + "}")
+        return
+    if kind is tuple and _text_only(value):  # immutable: encoded once per value and level
+        text = _TUPLES.get((level, value))
+        if text is None:
+            part: list[str] = []
+            _encode(list(value), level, part)
+            text = "".join(part)
+            if len(_TUPLES) >= _TUPLES_KEPT:
+                _TUPLES.clear()
+            _TUPLES[(level, value)] = text
+        out.append(text)
         return
     if kind is list or kind is tuple:
         if not value:

@@ -74,6 +74,10 @@ def _column_names(fields: tuple[tuple[str, "np.dtype"], ...]) -> tuple[tuple[str
 def sidecar_text(record: dict[str, Any]) -> str:
     """The sidecar file's text: ``json.dumps(record, indent=1, sort_keys=True)`` and a line
     end (:func:`~lidarsim_core.base.jsontext.indented_json`, the same text faster)."""
+    columns = record.get("columns")
+    if isinstance(columns, list) and all(isinstance(c, list) for c in columns):
+        # the same in every frame: as a tuple it is encoded once (the same text)
+        record = {**record, "columns": tuple(tuple(c) for c in columns)}
     return indented_json(record) + "\n"
 
 
