@@ -195,3 +195,17 @@ def test_ply_from_a_spool_keeps_the_range_checks(tmp_path):
                                                  exporter_named("ply", {})))
     assert "face_index" in message and "f.ply" in message
     assert os.listdir(tmp_path) == []
+
+
+def test_ply_from_a_spool_of_several_chunks_is_the_column_by_column_file(tmp_path):
+    import io
+
+    cloud = _cloud_points(70_000)  # more than one chunk of 65,536 points
+    spool = PointSpool(cloud.frame)
+    spool.extend(cloud.iter_chunks(size=30_000))
+    exporter = exporter_named("ply", {})
+    from_records, by_columns = io.BytesIO(), io.BytesIO()
+    exporter.write_points(spool, from_records)
+    exporter.write_points(cloud, by_columns)  # CloudPoints: no records, column by column
+    assert spool.records() is not None and cloud.records() is None
+    assert from_records.getvalue() == by_columns.getvalue()

@@ -49,6 +49,7 @@ from .base import Exporter
 from .columns import check_input, check_record_count, header_lines, reader_errors
 from .dialects import Dialect, DialectOptions, column_name, record_names
 from .headermeta import metadata_from_lines, metadata_lines
+from .points import DEFAULT_CHUNK_POINTS
 
 if TYPE_CHECKING:
     from .points import PointSource
@@ -154,10 +155,11 @@ class PlyExporter(Exporter):
         header.append("end_header")
         stream.write(("\n".join(header) + "\n").encode("ascii"))
         records = points.records()
-        if records is not None:  # one conversion; the same bytes as column by column
+        if records is not None:  # one conversion a chunk: the same bytes as column by column
             for column, ply, out in checked:
                 _check_fits(column, records[column], ply, out)
-            stream.write(records.astype(dtype).tobytes())
+            for start in range(0, len(records), DEFAULT_CHUNK_POINTS):
+                stream.write(records[start:start + DEFAULT_CHUNK_POINTS].astype(dtype).data)
             return
         for chunk in points.iter_chunks([n for n, _, _ in layout]):
             data = np.empty(len(chunk["x"]), dtype=dtype)

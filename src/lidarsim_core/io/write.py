@@ -19,11 +19,12 @@ from typing import Any
 from ..base.atomic import atomic_output, write_bytes_atomic
 from ..base.errors import UserInputError
 from .base import Exporter
-from .points import DEFAULT_SPOOL_MEMORY, PointSource
+from .points import PointSource
 from .sidecar import sidecar_record, write_sidecar
 
-#: Largest frame (bytes of its point records) encoded in memory before it is written.
-BUFFER_LIMIT = DEFAULT_SPOOL_MEMORY
+#: Largest frame (bytes of its point records) encoded in memory before it is written; larger
+#: ones stream to their file chunk by chunk, as before.
+BUFFER_LIMIT = 16 * 2 ** 20
 
 
 def _buffered(points: PointSource, exporter: Exporter) -> bool:
