@@ -4,7 +4,9 @@ failed or interrupted run leaves the previous file or none, never a partial one.
 from __future__ import annotations
 
 import os
+import random
 import secrets
+import stat
 import sys
 import threading
 from contextlib import contextmanager
@@ -76,11 +78,109 @@ def atomic_output(path: str | Path, *, overwrite: bool = True) -> Iterator[IO[by
         raise
 
 
+def _check_existing(path: Path, overwrite: bool) -> bool:
+    """The checks of :func:`atomic_output` on what is at ``path`` already, with one
+    ``lstat`` (a second ``stat`` only for a symbolic link); whether something is there."""
+    try:
+        mode = os.lstat(path).st_mode
+    except OSError:  # missing, or unreadable: left to the open that follows
+        return False
+    if stat.S_ISDIR(mode) or (stat.S_ISLNK(mode) and os.path.isdir(path)):
+        raise OutputError("output path is a directory", source=path)
+    if not overwrite:
+        raise OutputError("output file exists (use --overwrite to replace it)", source=path)
+    if not (stat.S_ISREG(mode) or stat.S_ISLNK(mode)):
+        from .outputs import check_replaceable
+
+        check_replaceable(path)  # names what the node is
+    return True
+
+
+def write_bytes_atomic(path: str | Path, data: bytes | bytearray | memoryview, *,
+                       overwrite: bool = True) -> Path:
+    """Write ``data`` to ``path`` as :func:`atomic_output` does (a hidden temporary file
+    renamed onto ``path`` when complete, synced first unless inside :func:`deferred_sync`,
+    removed whatever stops the write; the same checks and the same one-line errors), with the
+    fewest system calls: one ``lstat`` of the target, then ``open``, ``write``, ``close`` and
+    ``rename`` (no buffered file object, no per-check ``stat``).
+
+    A dataset writes two such files per frame, on a thread that shares the interpreter with
+    the simulation: every system call is a point where the threads hand the interpreter
+    over, so fewer calls cost less than their own time.
+
+    Returns
+    -------
+    Path
+        ``path``.
+    """
+    path = Path(path)
+    target = os.fspath(path)
+    _check_existing(path, overwrite)
+    parent, name = os.path.split(target)
+    tmp: str | None = None
+    try:
+        try:
+            for attempt in range(8):  # a name taken (a leftover) is never ours: another
+                tmp = os.path.join(parent, f".{name}.{_token()}.part")
+                try:
+                    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL |
+                                 getattr(os, "O_BINARY", 0), 0o666)
+                    break
+                except FileExistsError:
+                    if attempt == 7:
+                        raise
+        except PermissionError:
+            tmp = None
+            raise OutputError(f"output directory is not writable: {parent or '.'}",
+                              source=path) from None
+        except (FileNotFoundError, NotADirectoryError):
+            tmp = None
+            raise OutputError(f"output directory does not exist: {parent or '.'}",
+                              source=path) from None
+        except OSError as exc:
+            tmp = None
+            raise OutputError(f"cannot write here: {exc.strerror}", source=path) from None
+        deferred = getattr(_local, "deferred", None)
+        try:
+            view = memoryview(data).cast("B")
+            while view:
+                view = view[os.write(fd, view):]
+            if deferred is None:
+                os.fsync(fd)
+        finally:
+            os.close(fd)
+        os.replace(tmp, target)
+        if deferred is not None:
+            deferred.append(path)
+    except BaseException as exc:
+        if tmp is not None:
+            try:
+                os.unlink(tmp)
+            except FileNotFoundError:
+                pass
+        if isinstance(exc, OSError) and not isinstance(exc, OutputError):
+            raise OutputError(f"cannot write: {describe_os_error(exc)}", source=path) from exc
+        raise
+    return path
+
+
+_tokens = threading.local()
+
+
+def _token() -> str:
+    """12 random hex digits for a temporary name, without a system call each (as
+    ``secrets.token_hex(6)`` makes): a generator seeded from the system once per thread and
+    process."""
+    pid = os.getpid()
+    if getattr(_tokens, "pid", None) != pid:  # a forked child must not repeat its parent
+        _tokens.pid, _tokens.random = pid, random.Random(secrets.token_bytes(16))
+    return f"{_tokens.random.getrandbits(48):012x}"
+
+
 def write_text_atomic(path: str | Path, text: str, *, overwrite: bool = True) -> Path:
-    """Write UTF-8 ``text`` to ``path`` through :func:`atomic_output`; returns the path."""
-    with atomic_output(path, overwrite=overwrite) as stream:
-        stream.write(text.encode("utf-8"))
-    return Path(path)
+    """Write UTF-8 ``text`` to ``path`` atomically (:func:`write_bytes_atomic`); returns the
+    path."""
+    return write_bytes_atomic(path, text.encode("utf-8"), overwrite=overwrite)
 
 
 @contextmanager

@@ -139,6 +139,10 @@ def _print_suite(console: Any, suite: dict[str, Any], threads: int) -> None:
                       f"{data['in_memory_frames_per_s']:.1f} frames/s, serial lidarsim "
                       f"dataset {data['dataset_frames_per_s']:.1f} frames/s (ratio "
                       f"{data['dataset_over_in_memory']:.2f}, goal 0.8).")
+        cpu_ms = data.get("cpu_ms_per_frame")
+        if cpu_ms:
+            console.print(f"  CPU per frame: in memory {cpu_ms['in_memory']:.2f} ms, dataset "
+                          f"{cpu_ms['dataset']:.2f} ms.")
     start = suite.get("startup")
     if start:
         console.print(f"A new process, from import to the demo's first frame: "

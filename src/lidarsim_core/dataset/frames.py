@@ -29,7 +29,7 @@ _stats = {"simulations_built": 0, "frames": 0}
 #: are evaluated once per block (:meth:`~lidarsim_core.pipeline.simulation.Simulation.frame_infos`, the
 #: same bits as one frame at a time). Each is handed out once, to its frame's job.
 INFO_BLOCK = 64
-_infos: "OrderedDict[tuple[str, int], Any]" = OrderedDict()
+_infos: "OrderedDict[tuple[str, int], tuple[Any, bool]]" = OrderedDict()
 _infos_lock = threading.Lock()
 
 
@@ -92,31 +92,38 @@ def _simulation(job: FrameJob) -> Any:
     return sim
 
 
-def _frame_info(job: FrameJob, sim: Any) -> Any:
-    """``sim.frame_info(job.frame)``, from a block of frames computed ahead when it is there."""
+def _frame_info(job: FrameJob, sim: Any) -> tuple[Any, bool]:
+    """``sim.frame_info(job.frame)``, from a block of frames computed ahead when it is there,
+    and whether the block found the sensor clear of every target in that frame
+    (:func:`~lidarsim_core.pipeline.inside.clear_of_targets`: the frame's own check is then
+    skipped; the in-memory frames keep theirs)."""
+    from ..pipeline.inside import clear_of_targets  # the pipeline loads with the simulation
+
     key = (job.cache_key, job.frame)
     with _infos_lock:
-        info = _infos.pop(key, None)
-    if info is not None:
-        return info
+        ahead = _infos.pop(key, None)
+    if ahead is not None:
+        return ahead
     last = max(job.frame + 1, min(sim.scenario.scan.frames, job.frame + INFO_BLOCK))
-    infos = sim.frame_infos(range(job.frame, last))
+    block = range(job.frame, last)
+    infos = sim.frame_infos(block)
+    clear = clear_of_targets(sim.context, block)
     with _infos_lock:
-        for later in infos[1:]:
-            _infos[(job.cache_key, later.frame)] = later
+        for later, later_clear in zip(infos[1:], clear[1:]):
+            _infos[(job.cache_key, later.frame)] = (later, bool(later_clear))
         while len(_infos) > 4 * INFO_BLOCK:  # frames other workers made, or never asked for
             _infos.popitem(last=False)
-    return infos[0]
+    return infos[0], bool(clear[0])
 
 
 def simulate_frame_job(job: FrameJob) -> tuple[PointSpool, Any]:
     """Simulate ``job.frame`` into a :class:`~lidarsim_core.io.points.PointSpool` (the caller
     closes it, usually through :func:`write_frame_job`); returns it and the frame's info."""
     sim = _simulation(job)
-    info = _frame_info(job, sim)
+    info, clear = _frame_info(job, sim)
     spool = PointSpool(info, memory_limit=job.spool_memory)
     try:
-        spool.extend(sim.iter_chunks(job.frame))
+        spool.extend(sim.iter_chunks(job.frame, outside_checked=clear))
     except BaseException:
         spool.close()
         raise

@@ -30,6 +30,10 @@ class Exporter(Component):
     #: Python distributions whose versions can change the bytes written (recorded in dataset
     #: manifests), e.g. ``("laspy", "lazrs")``.
     requires: ClassVar[tuple[str, ...]] = ()
+    #: Whether :meth:`write_points` writes the same bytes to an in-memory buffer as to a file
+    #: (it needs no file descriptor or file name): :func:`~lidarsim_core.io.write.write_points_file`
+    #: then encodes a frame in memory, hashes those bytes and writes them with one call.
+    memory_stream: ClassVar[bool] = False
 
     def write(self, cloud: "PointCloud", stream: IO[bytes]) -> None:
         """Write ``cloud`` to the open binary ``stream``."""

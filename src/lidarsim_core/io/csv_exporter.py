@@ -54,6 +54,7 @@ class CsvExporter(Exporter):
 
     name = "csv"
     suffixes = (".csv",)
+    memory_stream = True
     Options = CsvOptions
     options: CsvOptions
 

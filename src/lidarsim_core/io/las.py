@@ -156,6 +156,7 @@ class LasExporter(Exporter):
 
     name = "las"
     suffixes = (".las",)
+    memory_stream = True
     Options = LasOptions
     options: LasOptions
     requires = ("laspy", "lazrs")

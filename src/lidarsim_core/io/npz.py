@@ -27,6 +27,7 @@ class NpzExporter(Exporter):
 
     name = "npz"
     suffixes = (".npz",)
+    memory_stream = True
 
     def write_points(self, points: "PointSource", stream: IO[bytes]) -> None:
         # the layout of numpy.savez_compressed, written one column at a time in chunks

@@ -111,6 +111,7 @@ class PcdExporter(Exporter):
 
     name = "pcd"
     suffixes = (".pcd",)
+    memory_stream = True
     Options = PcdOptions
     options: PcdOptions
 

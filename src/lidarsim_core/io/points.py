@@ -82,6 +82,12 @@ class PointSource(ABC):
         """The frame metadata as one line of compact JSON."""
         return frame_metadata_json(self.frame)
 
+    def records(self) -> np.ndarray | None:
+        """Every point as one structured array of :attr:`fields` (in that order), if the
+        source holds them so; else ``None`` (read them with :meth:`iter_chunks`). Exporters
+        may convert it in one call instead of column by column; it is not to be modified."""
+        return None
+
     def to_cloud(self) -> PointCloud:
         """All points in memory as a :class:`PointCloud` (for exporters that cannot stream)."""
         columns = {name: np.empty(0, dtype=dtype) for name, dtype in self.fields.items()}
@@ -215,6 +221,14 @@ class PointSpool(PointSource):
             self._file.seek(start * itemsize)
             block = np.frombuffer(self._file.read(n * itemsize), dtype=self._dtype)
             yield {name: np.ascontiguousarray(block[name]) for name in names}
+
+    def records(self) -> np.ndarray | None:
+        if self._file is not None or self._dtype is None:
+            return None
+        if self._joined is None:
+            self._joined = np.concatenate(self._parts) if len(self._parts) > 1 \
+                else self._parts[0] if self._parts else np.empty(0, dtype=self._dtype)
+        return self._joined
 
     def close(self) -> None:
         """Release the memory and the temporary file."""

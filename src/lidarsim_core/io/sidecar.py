@@ -16,15 +16,19 @@ after its data file.
 
 from __future__ import annotations
 
+import functools
 import hashlib
-import json
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from ..base.atomic import write_text_atomic
 from ..base.config_io import read_json_file
 from ..base.errors import ConfigError
+from ..base.jsontext import indented_json
 
 if TYPE_CHECKING:
+    import numpy as np
+
     from .base import Exporter
     from .points import PointSource
 
@@ -48,24 +52,38 @@ def sha256_file(path: str | Path) -> str:
     return digest.hexdigest()
 
 
-def sidecar_record(path: str | Path, points: "PointSource", exporter: "Exporter"
-                   ) -> dict[str, Any]:
-    """The sidecar content for the finished file ``path`` holding ``points``."""
+def sidecar_record(path: str | Path, points: "PointSource", exporter: "Exporter", *,
+                   size: int | None = None, sha256: str | None = None) -> dict[str, Any]:
+    """The sidecar content for the finished file ``path`` holding ``points``; its ``size``
+    and ``sha256`` are read from the file unless given (from the bytes just written)."""
     path = Path(path)
     return {"format": SIDECAR_FORMAT, "version": SIDECAR_VERSION, "file": path.name,
             "exporter": exporter.name, "points": len(points),
-            "columns": [[name, dtype.name] for name, dtype in points.fields.items()],
-            "bytes": path.stat().st_size, "sha256": sha256_file(path),
+            "columns": [list(pair) for pair in _column_names(tuple(points.fields.items()))],
+            "bytes": path.stat().st_size if size is None else size,
+            "sha256": sha256_file(path) if sha256 is None else sha256,
             "frame": points.frame.to_dict()}
+
+
+@functools.lru_cache(maxsize=64)
+def _column_names(fields: tuple[tuple[str, "np.dtype"], ...]) -> tuple[tuple[str, str], ...]:
+    # NumPy builds a dtype's name anew each time (~1.5 µs a column): once per layout
+    return tuple((name, dtype.name) for name, dtype in fields)
+
+
+def sidecar_text(record: dict[str, Any]) -> str:
+    """The sidecar file's text: ``json.dumps(record, indent=1, sort_keys=True)`` and a line
+    end (:func:`~lidarsim_core.base.jsontext.indented_json`, the same text faster)."""
+    columns = record.get("columns")
+    if isinstance(columns, list) and all(isinstance(c, list) for c in columns):
+        # the same in every frame: as a tuple it is encoded once (the same text)
+        record = {**record, "columns": tuple(tuple(c) for c in columns)}
+    return indented_json(record) + "\n"
 
 
 def write_sidecar(path: str | Path, record: dict[str, Any]) -> Path:
     """Write ``record`` atomically to the sidecar of ``path``; returns the sidecar's path."""
-    from ..base.atomic import write_text_atomic
-
-    target = sidecar_path(path)
-    text = json.dumps(record, indent=1, sort_keys=True) + "\n"
-    return write_text_atomic(target, text)
+    return write_text_atomic(sidecar_path(path), sidecar_text(record))
 
 
 def read_sidecar(path: str | Path) -> dict[str, Any]:

@@ -1,15 +1,50 @@
 """Writing a cloud's file: the points streamed atomically through an exporter, then the sidecar
-JSON with the frame metadata and the file's checksum."""
+JSON with the frame metadata and the file's checksum.
+
+A frame whose points are in memory (up to :data:`BUFFER_LIMIT` bytes of records) is encoded
+into an in-memory buffer when its exporter allows it (:attr:`Exporter.memory_stream
+<lidarsim_core.io.base.Exporter.memory_stream>`): its checksum and size come from those bytes
+and the file is written with one call (:func:`~lidarsim_core.base.atomic.write_bytes_atomic`),
+instead of streaming to the file and reading it back to hash it. The bytes are the same
+either way.
+"""
 
 from __future__ import annotations
 
+import hashlib
+import io
 from pathlib import Path
 from typing import Any
 
-from ..base.atomic import atomic_output
+from ..base.atomic import atomic_output, write_bytes_atomic
+from ..base.errors import UserInputError
 from .base import Exporter
 from .points import PointSource
 from .sidecar import sidecar_record, write_sidecar
+
+#: Largest frame (bytes of its point records) encoded in memory before it is written; larger
+#: ones stream to their file chunk by chunk, as before.
+BUFFER_LIMIT = 16 * 2 ** 20
+
+
+def _buffered(points: PointSource, exporter: Exporter) -> bool:
+    if not getattr(exporter, "memory_stream", False):
+        return False
+    row = sum(dtype.itemsize for dtype in points.fields.values())
+    return len(points) * row <= BUFFER_LIMIT
+
+
+def encode_points(points: PointSource, exporter: Exporter, path: str | Path) -> memoryview:
+    """The bytes ``exporter`` writes for ``points``, encoded in memory (an exporter's
+    complaint names ``path``, as a write to the file would)."""
+    buffer = io.BytesIO()
+    try:
+        exporter.write_points(points, buffer)
+    except UserInputError as exc:
+        if exc.source is None:
+            raise type(exc)(exc.message, source=Path(path), field=exc.field) from None
+        raise
+    return buffer.getbuffer()
 
 
 def write_points_file(points: PointSource, path: str | Path, exporter: Exporter, *,
@@ -35,9 +70,18 @@ def write_points_file(points: PointSource, path: str | Path, exporter: Exporter,
     dict
         The sidecar record (file name, exporter, point count, columns, size, SHA-256, frame).
     """
-    with atomic_output(path, overwrite=overwrite) as stream:
-        exporter.write_points(points, stream)
-    record = sidecar_record(path, points, exporter)
+    if _buffered(points, exporter):
+        data = encode_points(points, exporter, path)
+        try:
+            write_bytes_atomic(path, data, overwrite=overwrite)
+            record = sidecar_record(path, points, exporter, size=len(data),
+                                    sha256=hashlib.sha256(data).hexdigest())
+        finally:
+            data.release()
+    else:
+        with atomic_output(path, overwrite=overwrite) as stream:
+            exporter.write_points(points, stream)
+        record = sidecar_record(path, points, exporter)
     if sidecar:
         write_sidecar(path, record)
     return record

@@ -62,3 +62,42 @@ def check_sensor_outside(ctx: RunContext, frame: int,
                     f"the sensor is inside the closed target '{target.name}' at t = {t:g} s "
                     "(every probe ray meets the inner side of its surface); move the sensor "
                     "or the target", source=scenario.source, field=field)
+
+
+#: Margin, relative to the size of a target's box and of the coordinates, by which the sensor
+#: must clear the box in :func:`clear_of_targets`: far beyond any rounding difference between
+#: evaluating poses one frame or a block of frames at a time.
+CLEAR_MARGIN = 1e-6
+
+
+def clear_of_targets(ctx: RunContext, frames: Any) -> Any:
+    """For each of ``frames`` (scenario frames), whether the sensor is clearly outside every
+    target's bounding box at the frame's start and end: such a frame passes
+    :func:`check_sensor_outside` without a probe, so a caller that checked a block of frames
+    here (every trajectory evaluated once for the block) may skip the frame's own check. A
+    frame near or inside a box gets ``False`` and its own check, as before.
+
+    Returns
+    -------
+    numpy.ndarray
+        One bool per frame.
+    """
+    import numpy as np
+
+    scan = ctx.scenario.scan
+    frames = list(frames)
+    intervals = np.array([scan.frame_interval(f) for f in frames], dtype=np.float64)
+    times = intervals[:, :1] if scan.motion == "frozen" else intervals
+    flat = times.reshape(-1)
+    clear = np.ones(len(frames), dtype=bool)
+    if not len(frames):
+        return clear
+    sensor_at = ctx.sensor_trajectory.poses_at(flat).position
+    for target in ctx.targets:
+        origins = target.trajectory.poses_at(flat).apply_inverse(sensor_at)
+        lo, hi = (np.asarray(b, dtype=np.float64) for b in target.mesh.bounds)
+        margin = CLEAR_MARGIN * (1.0 + float(np.abs(hi - lo).max()) +
+                                 float(np.abs(origins).max()))
+        outside = ((origins < lo - margin) | (origins > hi + margin)).any(axis=1)
+        clear &= outside.reshape(len(frames), -1).all(axis=1)
+    return clear

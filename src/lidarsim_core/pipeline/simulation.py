@@ -161,26 +161,32 @@ class Simulation:
         t0, t1 = self.context.scenario.scan.frame_interval(frame)
         return self.context.pattern.frame_index_range(t0, t1)  # a flash LiDAR's frame: one flash
 
-    def iter_chunks(self, frame: int, chunk_rays: int | None = None
-                    ) -> Iterator[dict[str, np.ndarray]]:
+    def iter_chunks(self, frame: int, chunk_rays: int | None = None, *,
+                    outside_checked: bool = False) -> Iterator[dict[str, np.ndarray]]:
         """Point-record columns of ``frame``, one dictionary per chunk of emitted rays.
 
         Each chunk is processed in about one piece per thread (at most :data:`PIECE_RAYS`
         rays each) on :func:`~lidarsim_core.base.threads.worker_threads` threads
         (``LIDARSIM_THREADS``; one thread if the backend is not ``thread_safe``); every ray's
         result depends only on its index, so neither setting changes the output.
+        ``outside_checked``: the caller found the sensor clear of every target at the frame's
+        start and end (:func:`~lidarsim_core.pipeline.inside.clear_of_targets`, a block of
+        frames at once), so the frame's own check is skipped.
         """
         yield from self.iter_span_chunks(
-            frame, *self.context.scenario.scan.frame_interval(frame), chunk_rays)
+            frame, *self.context.scenario.scan.frame_interval(frame), chunk_rays,
+            outside_checked=outside_checked)
 
     def iter_span_chunks(self, frame: int, t_start: float, t_end: float,
-                         chunk_rays: int | None = None) -> Iterator[dict[str, np.ndarray]]:
+                         chunk_rays: int | None = None, *, outside_checked: bool = False
+                         ) -> Iterator[dict[str, np.ndarray]]:
         """:meth:`iter_chunks` of a frame numbered ``frame`` (its noise streams) that covers
         ``[t_start, t_end)`` instead of the scenario's interval (the stepping API,
         :mod:`lidarsim_core.loop`, scans intervals it is given; a scenario frame is this span
         of its own interval, to the bit)."""
         ctx = self.context
-        check_sensor_outside(ctx, frame, (t_start, t_end))
+        if not outside_checked:
+            check_sensor_outside(ctx, frame, (t_start, t_end))
         chunk = chunk_rays or ctx.scenario.chunk_rays
         k0, k1 = ctx.pattern.frame_index_range(t_start, t_end)
         contexts = ctx.noise_contexts(frame)
