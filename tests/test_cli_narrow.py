@@ -148,26 +148,72 @@ def test_bench_tables_fit_80_columns(monkeypatch, capsys):
         assert figure in out, figure
 
 
-def test_demo_says_it_compiles_before_compiling(monkeypatch, tmp_path, capsys):
+def test_demo_warms_the_kernels_with_a_bar_before_any_output(monkeypatch, tmp_path):
     """The first ``lidarsim demo`` after installing spends up to a minute compiling the
-    kernels: a progress line is printed before that work starts (not after it)."""
+    kernels: they are compiled up front with a progress display, before anything is
+    written."""
     import lidarsim_core.kernels as kernels
+    from lidarsim_core.cli.progress import KernelBar
 
-    seen: list[str] = []
+    seen: list[object] = []
 
     class Stop(Exception):
         pass
 
-    def warm_up():
-        seen.append(capsys.readouterr().err)
+    def warm_up(display=None):
+        seen.append(display)
         raise Stop
 
-    monkeypatch.setattr(sys.stderr, "isatty", lambda: True, raising=False)  # a terminal
-    monkeypatch.setattr(kernels, "enabled", lambda: True)
     monkeypatch.setattr(kernels, "warm_up", warm_up)
     from lidarsim_core.cli.demo import _demo
 
     with pytest.raises(Stop):
         _demo(tmp_path / "out", 0.1, "auto", "coarse", 1)
-    assert seen and seen[0].startswith("lidarsim: compiling kernels, once per install"), seen
+    assert len(seen) == 1 and isinstance(seen[0], KernelBar), seen
     assert not (tmp_path / "out").exists()  # nothing written before the work
+
+
+def _terminal_bar(monkeypatch, times):
+    """A KernelBar drawing on a fake 80-column terminal, with a clock reading ``times``."""
+    import io
+
+    from rich.console import Console
+
+    import lidarsim_core.cli.progress as progress
+
+    screen = io.StringIO()
+    monkeypatch.setattr(progress, "_stderr_console",
+                        lambda: Console(file=screen, force_terminal=True, width=80))
+    bar = progress.KernelBar()
+    clock = iter(times)
+    bar._clock = lambda: next(clock)
+    return bar, screen
+
+
+def test_kernel_bar_shows_a_slow_compile_and_names_the_kernel(monkeypatch):
+    # three kernels, the first taking 20 s (compiled): the bar appears and names the next
+    bar, screen = _terminal_bar(monkeypatch, [0.0, 20.0, 21.0, 22.0])
+    for done, name in enumerate(["philox", "rose", "risley"]):
+        bar(done, 3, name)
+    bar(3, 3, "")
+    text = screen.getvalue()
+    assert "compiling kernels" in text and "rose" in text and "1/3" in text, text
+
+
+def test_kernel_bar_stays_silent_when_the_kernels_load_from_the_cache(monkeypatch):
+    bar, screen = _terminal_bar(monkeypatch, [0.0, 0.05, 0.1, 0.15])
+    for done, name in enumerate(["philox", "rose", "risley"]):
+        bar(done, 3, name)
+    bar(3, 3, "")
+    assert screen.getvalue() == ""
+
+
+def test_kernel_bar_is_silent_when_stderr_is_not_a_terminal(capsys):
+    from lidarsim_core.cli.progress import KernelBar
+
+    bar = KernelBar()
+    bar._clock = iter([0.0, 30.0, 60.0]).__next__
+    bar(0, 2, "philox")
+    bar(1, 2, "rose")
+    bar(2, 2, "")
+    assert capsys.readouterr().err == ""

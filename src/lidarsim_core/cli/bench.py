@@ -120,7 +120,7 @@ def _print_suite(console: Any, suite: dict[str, Any], threads: int) -> None:
                           f"{100 * (stages['pulses_after_cull'] or 0):.1f} %")
             fused = stages.get("fused")
             if fused:  # the fast path's own parts (lidarsim_core.pipeline.fused)
-                console.print(f"  fast path, ns per emitted ray: " + ", ".join(
+                console.print("  fast path, ns per emitted ray: " + ", ".join(
                     f"{k} {v:.0f}" for k, v in fused.items() if k != "general_measurement")
                     + f" (the general path's measurement: {fused['general_measurement']:.0f})")
     targets = suite.get("targets", {})

@@ -48,12 +48,13 @@ def _dataset(source: Path, out: Path, frames: int | None, fmt: str | None,
     from ..base.errors import ConfigError
     from ..base.limits import check_frames
     from ..dataset import generate_dataset
-    from .progress import FrameBar
+    from .progress import FrameBar, warm_kernels
 
     if workers is not None and scheduler is not None:
         raise ConfigError("give --workers or --scheduler, not both", field="workers")
     if frames is not None:
         check_frames(frames, source=None, field="--frames")
+    warm_kernels()  # a bar while a first run on this machine compiles them
     result = generate_dataset(source, out, frames=frames, format=fmt, workers=workers,
                               scheduler=scheduler, quiet=quiet, verify=verify,
                               livox=livox, display=FrameBar(), sequences=sequences)

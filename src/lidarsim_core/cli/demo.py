@@ -13,7 +13,7 @@ from .app import app
 from .errors import check_number_option, check_seed_option, run_guarded
 from .output import Column, print_json, print_table
 from .output import console as make_console
-from .progress import status
+from .progress import KernelBar, status
 
 # ---- demo -------------------------------------------------------------------------------
 #: Cloud files of ``lidarsim demo`` (each with a sidecar ``.json``), by run label.
@@ -68,11 +68,9 @@ def _demo(out: Path, duration: float, backend: str, detail: str, seed: int,
     check_seed_option(seed)
     check_files(out, demo_files(), overwrite=overwrite)  # before any work: nothing replaced
     started = time.perf_counter()
-    if kernels.enabled():
-        status("compiling kernels, once per install (up to a minute; later runs load them "
-               "from numba's cache in a second)")
     t0 = time.perf_counter()
-    kernels_used = kernels.warm_up()  # compile or load the kernels outside the timed runs
+    # compile or load the kernels outside the timed runs, with a bar while they compile
+    kernels_used = kernels.warm_up(display=KernelBar())
     compile_s = time.perf_counter() - t0
     runs = {}
     for label, noisy in (("with_errors", True), ("without_errors", False)):

@@ -95,6 +95,54 @@ class EvaluateBar:
             self._progress.stop()
 
 
+class KernelBar:
+    """The compiled kernels being compiled or loaded (a
+    :data:`lidarsim_core.kernels.Display`): silent when stderr is not a terminal, and drawn
+    only once a kernel has taken longer than :attr:`DELAY_S` (a process that loads them from
+    numba's disk cache finishes in a fraction of a second and shows nothing; the first run on
+    a machine, which compiles them, shows which kernel it is on and how many are left)."""
+
+    #: Seconds of silence before the bar appears.
+    DELAY_S = 0.5
+
+    def __init__(self) -> None:
+        import time
+
+        self._clock = time.perf_counter
+        self._console = _stderr_console()
+        self._progress = Progress(
+            TextColumn("[bold]compiling kernels[/] (once per install)"), BarColumn(),
+            MofNCompleteColumn(), TextColumn("{task.fields[kernel]}"), TimeElapsedColumn(),
+            console=self._console or Console(stderr=True), transient=True,
+            disable=self._console is None)
+        self._task: Any = None
+        self._since: float | None = None
+
+    def __call__(self, done: int, total: int, name: str) -> None:
+        if self._console is None:
+            return
+        now = self._clock()
+        if self._since is None:
+            self._since = now
+        if self._task is None and done < total and now - self._since > self.DELAY_S:
+            self._progress.start()
+            self._task = self._progress.add_task("kernels", total=total, kernel="")
+        if self._task is not None:
+            self._progress.update(self._task, completed=done, kernel=name)
+            self._progress.refresh()  # numba holds the GIL while compiling: draw now
+            if done >= total:
+                self._progress.stop()
+
+
+def warm_kernels() -> None:
+    """Compile or load the compiled kernels up front with :class:`KernelBar`, when stderr is
+    a terminal (elsewhere the kernels compile silently on first use, as the library does)."""
+    from .. import kernels
+
+    if _stderr_console() is not None and kernels.enabled():
+        kernels.warm_up(display=KernelBar())
+
+
 def status(line: str) -> None:
     """One progress line on stderr, ``lidarsim: <line>…``, when a step that takes a while
     starts; only when stderr is a terminal, like the progress bars (``cli.output``): a

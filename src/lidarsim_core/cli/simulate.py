@@ -12,6 +12,7 @@ from .output import markup_safe as escape
 from .app import app
 from .errors import check_seed_option, run_guarded
 from .output import console as make_console
+from .progress import warm_kernels
 
 #: Bytes of points ``lidarsim simulate`` holds in memory per frame before spilling them to a
 #: temporary file (the frame is then streamed to its output file).
@@ -107,6 +108,7 @@ def _simulate(path: Path, out: Path, frame: int | None, fmt: str | None, overwri
         check_group([f for target in targets for f in range_image_files(target)],
                     overwrite=overwrite)
     sim = Simulation(scenario)  # guards third-party components itself
+    warm_kernels()  # a bar while a first run on this machine compiles them
     from ..base.outputs import check_not_input
 
     for target in targets:  # the meshes and keyframes the simulation has just read too
