@@ -97,7 +97,7 @@ def _warm_up_calls() -> list[tuple[str, Callable[[], Any], Any]]:
 
     from .cull import cull_by_grid, cull_by_grid_cones, cull_posed, direction_grid, motion_bound
     from .embree_cast import cast_faces, cast_refined
-    from .fused import body_rays, closest_hit, measure, normals, ray_stage
+    from .fused import body_rays, closest_hit, measure, normals, ray_stage, ray_stage_drawn
     from .fused_cast import cast_closest
     from .patterns import cycle_rays, lissajous_directions, spinning_directions
     from .philox import ray_uniforms
@@ -165,7 +165,10 @@ def _warm_up_calls() -> list[tuple[str, Callable[[], Any], Any]]:
         ("normals", lambda: normals(np.zeros(2, dtype=np.uint64), index, 2), normals),
         ("fused ray stage", lambda: ray_stage(one, index, np.zeros((1, 2), dtype=np.uint64),
                                               np.ones(1), np.eye(3)[None], np.empty((1, 3)),
-                                              np.empty((1, 3)), False, table, table), ray_stage),
+                                              np.empty((1, 3))), ray_stage),
+        ("fused ray stage, normals drawn", lambda: ray_stage_drawn(
+            one, np.zeros((1, 1, 2)), np.ones(1), np.eye(3)[None], np.empty((1, 3)),
+            np.empty((1, 3))), ray_stage_drawn),
         ("fused body rays", lambda: body_rays(one, one, one, np.eye(3)[None], np.empty((1, 3)),
                                               np.empty((1, 3))), body_rays),
         ("fused closest hit", lambda: closest_hit(
@@ -175,7 +178,7 @@ def _warm_up_calls() -> list[tuple[str, Callable[[], Any], Any]]:
         ("fused measure", lambda: measure(np.ones(1), np.zeros(1, dtype=np.int16), one, index,
                                           0.0, 2.0, np.zeros(1, dtype=np.int64),
                                           np.zeros((1, 2), dtype=np.uint64),
-                                          np.ones((1, 2)), False, table, table), measure),
+                                          np.ones((1, 2)), np.empty((1, 0))), measure),
         # no rays: compiled for the fast path's argument types without calling Embree
         ("fused embree cast", lambda: cast_closest(
             0, 0, 16, 21, np.empty((0, 3)), one, one, np.eye(3)[None], np.zeros(3), 1.0, 1e-6,

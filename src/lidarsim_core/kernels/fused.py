@@ -31,7 +31,6 @@ import numpy as np
 from numba import njit
 
 from .philox import philox_block, to_unit
-from .ziggurat import ziggurat_first, ziggurat_rejection
 
 # Cephes ndtri (scipy/xsf include/xsf/cephes/ndtri.h): rational approximations of the
 # inverse normal CDF on |y - 1/2| <= 3/8, then on z = sqrt(-2 log y) in [2, 8) and [8, 64)
@@ -138,19 +137,6 @@ def normals(key, ray_index, draws):  # noqa: ANN001, ANN201
 
 
 @njit(inline="always", cache=True)
-def draw_normal(word, c0, lane, k0, k1, zig, xs, fs):  # noqa: ANN001, ANN201
-    """The normal of Philox word ``lane`` of block ``c0`` (key ``k0, k1``): the seed paper's
-    ``ndtri`` of its uniform, or with ``zig`` the Ziggurat's draw
-    (:mod:`lidarsim_core.kernels.ziggurat`; ``xs``, ``fs`` its tables)."""
-    if zig:
-        z, outside = ziggurat_first(word, xs)
-        if outside:
-            z = ziggurat_rejection(word, c0, np.uint64(lane), k0, k1, xs, fs)
-        return z
-    return ndtri(to_unit(word))
-
-
-@njit(inline="always", cache=True)
 def turn_ray(x, y, z, a1, a2):  # noqa: ANN001, ANN201
     """A direction turned by ``a1`` about u, then ``a2`` about v (the angular error,
     :func:`lidarsim_core.kernels.rotation.rotate_two_angles`'s arithmetic)."""
@@ -183,8 +169,7 @@ def matvec(m, x, y, z, inverse):  # noqa: ANN001, ANN201
 
 
 @njit(nogil=True, cache=True)
-def ray_stage(direction, ray_index, keys, sigmas, sensor_matrix, flown, scene, zig, xs,
-              fs):  # noqa: ANN001
+def ray_stage(direction, ray_index, keys, sigmas, sensor_matrix, flown, scene):  # noqa: ANN001
     """Write the flown directions (sensor frame) and their scene-frame rotations.
 
     Parameters
@@ -200,8 +185,6 @@ def ray_stage(direction, ray_index, keys, sigmas, sensor_matrix, flown, scene, z
         (1 or N, 3, 3) the sensor's body→scene rotations.
     flown, scene
         (N, 3) outputs.
-    zig, xs, fs
-        Whether the normals are the Ziggurat's (``normals: ziggurat``), and its tables.
     """
     shared = sensor_matrix.shape[0] == 1
     for i in range(direction.shape[0]):
@@ -209,9 +192,25 @@ def ray_stage(direction, ray_index, keys, sigmas, sensor_matrix, flown, scene, z
         counter = np.uint64(ray_index[i]) + np.uint64(1)  # one block: two draws per ray
         for a in range(keys.shape[0]):
             w = philox_block(counter, keys[a, 0], keys[a, 1])
-            a1 = draw_normal(w[0], counter, 0, keys[a, 0], keys[a, 1], zig, xs, fs) * sigmas[a]
-            a2 = draw_normal(w[1], counter, 1, keys[a, 0], keys[a, 1], zig, xs, fs) * sigmas[a]
+            a1 = ndtri(to_unit(w[0])) * sigmas[a]
+            a2 = ndtri(to_unit(w[1])) * sigmas[a]
             x, y, z = turn_ray(x, y, z, a1, a2)
+        flown[i, 0], flown[i, 1], flown[i, 2] = x, y, z
+        m = sensor_matrix[0] if shared else sensor_matrix[i]
+        scene[i, 0], scene[i, 1], scene[i, 2] = matvec(m, x, y, z, False)
+
+
+@njit(nogil=True, cache=True)
+def ray_stage_drawn(direction, drawn, sigmas, sensor_matrix, flown, scene):  # noqa: ANN001
+    """:func:`ray_stage` with normals drawn beforehand: ``drawn`` (A, N, 2), the two normals
+    of every ray for each angular error (another generator's, e.g. the Ziggurat's
+    :func:`lidarsim_core.kernels.ziggurat.ray_normals`: a draw with a rare rejection loop
+    inside this loop would slow every ray)."""
+    shared = sensor_matrix.shape[0] == 1
+    for i in range(direction.shape[0]):
+        x, y, z = direction[i, 0], direction[i, 1], direction[i, 2]
+        for a in range(drawn.shape[0]):
+            x, y, z = turn_ray(x, y, z, drawn[a, i, 0] * sigmas[a], drawn[a, i, 1] * sigmas[a])
         flown[i, 0], flown[i, 1], flown[i, 2] = x, y, z
         m = sensor_matrix[0] if shared else sensor_matrix[i]
         scene[i, 0], scene[i, 1], scene[i, 2] = matvec(m, x, y, z, False)
@@ -258,15 +257,16 @@ def closest_hit(target, distance, face, normal, direction, face_part, part_offse
 
 @njit(nogil=True, cache=True)
 def measure(best, best_target, flown, ray_index, range_min, range_max, kinds,  # noqa: ANN001
-            keys, params, zig, xs, fs):  # noqa: ANN001, ANN201
+            keys, params, drawn):  # noqa: ANN001, ANN201
     """The range gate, the range errors and the point-record columns of the pulses that
     return.
 
     ``kinds``, ``keys``, ``params``: the chain's range models in chain order, (R,) kinds,
     (R, 2) Philox keys and (R, 2) parameters: :data:`RANGE_GAUSSIAN` (``range``: σ),
     :data:`RANGE_SYSTEMATIC` (``range_systematic``: 1 + scale, bias) and
-    :data:`RANGE_QUANTISED` (``range_quantisation``: step, offset); ``zig``, ``xs``, ``fs``:
-    the Ziggurat's normals and tables (as :func:`ray_stage`). Returns ``rows`` (the
+    :data:`RANGE_QUANTISED` (``range_quantisation``: step, offset). ``drawn``: (R, M) normals
+    drawn beforehand for the M pulses that pass the range gate, in order (another generator's,
+    e.g. the Ziggurat's), or (R, 0) to draw the seed paper's here. Returns ``rows`` (the
     pulses kept, in order), the true and measured ranges, and the measured and true points
     (sensor frame, (3, M)), each of the exact length.
     """
@@ -289,9 +289,12 @@ def measure(best, best_target, flown, ray_index, range_min, range_max, kinds,  #
         counter = np.uint64(ray_index[i]) + np.uint64(1)
         for a in range(kinds.shape[0]):
             if kinds[a] == RANGE_GAUSSIAN:  # R + z σ (noise.gaussian.RangeError)
-                w = philox_block(counter, keys[a, 0], keys[a, 1])
-                measured = measured + draw_normal(w[0], counter, 0, keys[a, 0], keys[a, 1],
-                                                  zig, xs, fs) * params[a, 0]
+                if drawn.shape[1] > 0:
+                    z = drawn[a, k]
+                else:
+                    w = philox_block(counter, keys[a, 0], keys[a, 1])
+                    z = ndtri(to_unit(w[0]))
+                measured = measured + z * params[a, 0]
             elif kinds[a] == RANGE_SYSTEMATIC:  # R (1 + scale) + bias
                 measured = measured * params[a, 0] + params[a, 1]
             else:  # offset + q round((R - offset) / q), halves to even as NumPy's round

@@ -191,10 +191,15 @@ class FusedPath:
         keys, sigmas = self._keys(self.angular, contexts)
         posed = piece_poses(self.ctx, batch, t_frame)
         flown, scene = np.empty((n, 3)), np.empty((n, 3))
-        ray_stage(np.ascontiguousarray(batch.direction, dtype=np.float64),
-                  np.ascontiguousarray(batch.index, dtype=np.int64), keys, sigmas,
-                  _c(posed.sensor.matrix), flown, scene, self.ziggurat, ziggurat.X_TABLE,
-                  ziggurat.F_TABLE)
+        direction = np.ascontiguousarray(batch.direction, dtype=np.float64)
+        index = np.ascontiguousarray(batch.index, dtype=np.int64)
+        if self.ziggurat:  # the Ziggurat's normals first (its rare rejections stay out of it)
+            from ..kernels.fused import ray_stage_drawn
+
+            ray_stage_drawn(direction, self._drawn(keys, index, 2), sigmas,
+                            _c(posed.sensor.matrix), flown, scene)
+        else:
+            ray_stage(direction, index, keys, sigmas, _c(posed.sensor.matrix), flown, scene)
         if self.compiled is not None:  # the compiled loop makes the body rays per packet
             return CastRays(batch, flown, [], scene, posed)
         bodies = []
@@ -251,13 +256,31 @@ class FusedPath:
                 ) -> Returned:
         """The range gate and the range errors: the pulses that return, with their ranges and
         points."""
-        from ..kernels.fused import measure
+        from ..kernels.fused import RANGE_GAUSSIAN, measure
 
-        return Returned(*measure(best.distance, best.target, rays.flown,
-                                 np.ascontiguousarray(rays.batch.index),
-                                 float(self.ctx.sensor.range_min_m),
-                                 float(self.ctx.range_limit), *self._range_models(contexts),
-                                 self.ziggurat, ziggurat.X_TABLE, ziggurat.F_TABLE))
+        kinds, keys, params = self._range_models(contexts)
+        range_min, range_max = float(self.ctx.sensor.range_min_m), float(self.ctx.range_limit)
+        index = np.ascontiguousarray(rays.batch.index, dtype=np.int64)
+        drawn = np.empty((len(kinds), 0))
+        if self.ziggurat and (kinds == RANGE_GAUSSIAN).any():
+            # the gate of the kernel, so that the normals are drawn for the returns only
+            r = best.distance
+            gate = (best.target >= 0) & (r >= range_min) & (r <= range_max)
+            drawn = np.ascontiguousarray(self._drawn(keys, index[gate], 1)[:, :, 0])
+        return Returned(*measure(best.distance, best.target, rays.flown, index, range_min,
+                                 range_max, kinds, keys, params, drawn))
+
+    @staticmethod
+    def _drawn(keys: np.ndarray, index: np.ndarray, draws: int) -> np.ndarray:
+        """(K, N, draws) Ziggurat normals of each stream key for rays ``index``."""
+        from ..kernels.ziggurat import ray_normals
+
+        out = np.empty((len(keys), len(index), draws))
+        for a in range(len(keys)):
+            key = keys[a].copy()
+            key.flags.writeable = False  # as the stream keys the kernel is compiled for
+            out[a] = ray_normals(key, index, draws, ziggurat.X_TABLE, ziggurat.F_TABLE)
+        return out
 
     def columns(self, rays: CastRays, best: ClosestHits, returned: Returned, t_frame: float
                 ) -> dict[str, np.ndarray]:
