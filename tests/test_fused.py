@@ -242,3 +242,26 @@ def test_empty_and_small_pieces_give_the_general_columns():
         for name, column in general.items():
             assert fast[name].dtype == column.dtype, name
             assert fast[name].tobytes() == np.asarray(column).tobytes(), name
+
+
+def test_without_the_binding_the_fast_path_casts_through_embreex(monkeypatch):
+    """An Embree backend whose binding cannot load gives no compiled cast: the fast path then
+    casts through ``backend.cast`` (embreex), with the general path's bits."""
+    from collections import OrderedDict
+
+    from lidarsim_core.backends import embree4
+    from lidarsim_core.backends.embree_backend import EmbreeBackend
+    from lidarsim_core.base.errors import BackendError
+
+    def refuse():
+        raise BackendError("the Embree library x is version 4.9.0; its layout is unknown")
+
+    monkeypatch.setattr(embree4, "load", refuse)
+    monkeypatch.setattr(EmbreeBackend, "_prepared", OrderedDict())  # prepare afresh
+    sim = Simulation(scenario_from_dict(_two_targets_moving_sensor()))
+    assert sim.fused is not None and sim.fused.compiled is None
+    fast = sim.run_frame(0)
+    sim.fused = None
+    general = sim.run_frame(0)
+    assert len(general) > 50
+    _assert_same(fast, general)
