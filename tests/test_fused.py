@@ -84,6 +84,16 @@ SCENES = {
     "suite-two-targets": lambda: _suite("two-targets", 0.05),
     "suite-tumbling-rose": lambda: _suite("tumbling-rose", 0.05),
     "suite-flash": lambda: _suite("flash-256", 0.05),
+    # the Ziggurat's normals (another named stream) are drawn by the kernels too
+    "ziggurat-demo": lambda: scenario_from_dict(_demo(normals="ziggurat")),
+    "ziggurat-chain": lambda: scenario_from_dict(_demo(normals="ziggurat", noise=[
+        {"name": "range", "options": {"sigma_m": 0.05}},
+        {"name": "angular", "options": {"sigma_deg": 0.3}},
+        {"name": "angular"}, {"name": "range"},
+        {"name": "range_quantisation", "options": {"step_m": 0.004}}])),
+    "ziggurat-two-targets-moving-sensor": lambda: scenario_from_dict(
+        dict(_two_targets_moving_sensor(), normals="ziggurat")),
+    "ziggurat-tumbling": lambda: scenario_from_dict(dict(_tumbling_close(), normals="ziggurat")),
 }
 
 
@@ -107,9 +117,51 @@ def test_fast_path_equals_the_general_path(scene):
     _assert_same(fast, general)
 
 
+def _embree_binding() -> bool:
+    from lidarsim_core.backends.embree_backend import binding_status
+
+    return binding_status()[0]
+
+
+def test_the_cast_runs_in_the_compiled_loop_with_the_embree_binding_only():
+    """Embree through its binding hands the fast path a compiled cast; the NumPy backend
+    does not (its cast stays ``backend.cast``)."""
+    embree = Simulation(scenario_from_dict(_two_targets_moving_sensor()))
+    numpy_backend = Simulation(scenario_from_dict(_demo(backend={"name": "numpy"})))
+    assert numpy_backend.fused.compiled is None
+    if not _embree_binding():
+        pytest.skip("the Embree 4 binding does not load here")
+    handles = embree.fused.compiled
+    assert handles is not None and len(handles) == 2
+    assert all(h.width in (1, 4, 8, 16) and h.scene != 0 and h.intersect != 0 for h in handles)
+
+
+@pytest.mark.parametrize("scene", ["two-targets-moving-sensor", "tumbling-body-frame-truth",
+                                   "suite-flash", "ziggurat-chain"])
+@pytest.mark.parametrize(("chunk", "threads"), [(1000, "1"), (None, "2")])
+def test_the_in_loop_cast_equals_the_backends_cast(monkeypatch, scene, chunk, threads):
+    """The cast inside the compiled loop (body rays, Embree packets, refinement, closest
+    target) gives the bits of the fast path that casts through ``backend.cast``, across
+    chunks (1000: not a multiple of the packet width) and threads."""
+    if not _embree_binding():
+        pytest.skip("the Embree 4 binding does not load here")
+    sim = Simulation(SCENES[scene]())
+    assert sim.fused.compiled is not None
+    monkeypatch.setenv("LIDARSIM_THREADS", "1")
+    sim.fused._compiled = None  # through backend.cast
+    by_backend = sim.run_frame(0)
+    sim.fused._compiled = False  # asked again: the compiled loop
+    monkeypatch.setenv("LIDARSIM_THREADS", threads)
+    in_loop = sim.run_frame(0, chunk_rays=chunk)
+    assert sim.fused.compiled is not None
+    assert len(in_loop) > 50
+    _assert_same(in_loop, by_backend)
+
+
 @pytest.mark.parametrize(("chunk", "threads"), [(997, "1"), (4096, "2"), (None, "3")])
-def test_fast_path_is_independent_of_chunks_and_threads(monkeypatch, chunk, threads):
-    sim = Simulation(scenario_from_dict(_two_targets_moving_sensor()))
+@pytest.mark.parametrize("normals", ["inverse_cdf", "ziggurat"])
+def test_fast_path_is_independent_of_chunks_and_threads(monkeypatch, chunk, threads, normals):
+    sim = Simulation(scenario_from_dict(dict(_two_targets_moving_sensor(), normals=normals)))
     fused, sim.fused = sim.fused, None
     monkeypatch.setenv("LIDARSIM_THREADS", "1")
     general = sim.run_frame(0)
@@ -190,3 +242,26 @@ def test_empty_and_small_pieces_give_the_general_columns():
         for name, column in general.items():
             assert fast[name].dtype == column.dtype, name
             assert fast[name].tobytes() == np.asarray(column).tobytes(), name
+
+
+def test_without_the_binding_the_fast_path_casts_through_embreex(monkeypatch):
+    """An Embree backend whose binding cannot load gives no compiled cast: the fast path then
+    casts through ``backend.cast`` (embreex), with the general path's bits."""
+    from collections import OrderedDict
+
+    from lidarsim_core.backends import embree4
+    from lidarsim_core.backends.embree_backend import EmbreeBackend
+    from lidarsim_core.base.errors import BackendError
+
+    def refuse():
+        raise BackendError("the Embree library x is version 4.9.0; its layout is unknown")
+
+    monkeypatch.setattr(embree4, "load", refuse)
+    monkeypatch.setattr(EmbreeBackend, "_prepared", OrderedDict())  # prepare afresh
+    sim = Simulation(scenario_from_dict(_two_targets_moving_sensor()))
+    assert sim.fused is not None and sim.fused.compiled is None
+    fast = sim.run_frame(0)
+    sim.fused = None
+    general = sim.run_frame(0)
+    assert len(general) > 50
+    _assert_same(fast, general)

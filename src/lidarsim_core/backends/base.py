@@ -13,7 +13,7 @@ from __future__ import annotations
 import threading
 from abc import abstractmethod
 from collections import OrderedDict
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
 import numpy as np
@@ -51,6 +51,42 @@ class Hits:
     def misses(cls, n: int) -> "Hits":
         """N misses."""
         return cls(np.full(n, np.nan), np.full(n, -1, dtype=np.int64), np.full((n, 3), np.nan))
+
+
+@dataclass(frozen=True)
+class CompiledCast:
+    """What a compiled loop needs to cast on one prepared mesh without Python in between
+    (:meth:`RayBackend.compiled_cast`): Embree's intersect function and scene by address, and
+    the float64 arrays of the refinement
+    (:func:`lidarsim_core.kernels.fused_cast.cast_closest`'s arguments).
+
+    Attributes
+    ----------
+    intersect
+        Address of ``rtcIntersect1`` (``width`` 1) or ``rtcIntersect{width}``.
+    scene
+        The committed scene's handle (valid while ``owner`` lives).
+    width, fields
+        Packet width and 4-byte fields of the library's ray/hit structure.
+    centre, radius, epsilon
+        The mesh's box centre (the scene is relative to it), bounding-sphere radius, and the
+        backend's smallest distance.
+    first_vertex, normals
+        (F, 3) float64 first vertex and unit normal of every face.
+    owner
+        The prepared structure that owns the scene (kept alive with this handle).
+    """
+
+    intersect: int
+    scene: int
+    width: int
+    fields: int
+    centre: np.ndarray
+    radius: float
+    epsilon: float
+    first_vertex: np.ndarray
+    normals: np.ndarray
+    owner: Any = field(repr=False)
 
 
 class BackendOptions(ComponentOptions):
@@ -100,6 +136,11 @@ class RayBackend(Component):
     @abstractmethod
     def intersect(self, prepared: Any, origins: np.ndarray, directions: np.ndarray) -> Hits:
         """Closest hits of rays against a prepared mesh (see the module contract)."""
+
+    def compiled_cast(self, mesh: Mesh) -> CompiledCast | None:
+        """The handle a compiled loop casts ``mesh`` with, giving :meth:`cast`'s hits bit for
+        bit, or None (the default) when the backend casts only through :meth:`cast`."""
+        return None
 
     def prepared(self, mesh: Mesh) -> Any:
         """The cached prepared structure of ``mesh``, building it on first use."""

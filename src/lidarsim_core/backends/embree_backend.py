@@ -36,7 +36,7 @@ from ..geometry.vec3 import add_vector, rowdot, scale_rows
 from ..hookspecs import hookimpl
 from ..scene.mesh import Mesh
 from . import embree4
-from .base import BackendOptions, Hits, RayBackend, refine_on_faces
+from .base import BackendOptions, CompiledCast, Hits, RayBackend, refine_on_faces
 
 #: Fewest rays handed to a thread at once (smaller parts cost more in dispatch than they gain).
 _MIN_PART = 4096
@@ -114,6 +114,20 @@ class EmbreeBackend(RayBackend):
         scene = rtcore_scene.EmbreeScene()
         TriangleMesh(scene, triangles)
         return _PreparedEmbree(scene, mesh, center, radius, first_vertex)
+
+    def compiled_cast(self, mesh: Mesh) -> CompiledCast | None:
+        """The binding's intersect function, scene and refinement arrays of ``mesh`` (None
+        where the backend casts through embreex: no binding, or the kernels off)."""
+        if not kernels.enabled():
+            return None
+        prepared = self.prepared(mesh)
+        if prepared.compiled is None:
+            return None
+        address, width, fields = prepared.compiled
+        return CompiledCast(address, prepared.scene.handle, width, fields, prepared.center,
+                            prepared.radius, float(self.options.epsilon_m),
+                            prepared.first_vertex,
+                            np.ascontiguousarray(mesh.face_normals, dtype=np.float64), prepared)
 
     def _threads(self) -> int:
         if in_pipeline_worker():  # the pipeline's pieces already use every core

@@ -299,19 +299,31 @@ def fused_stages(fused: Any, batch: Any, contexts: list[Any], t_frame: float, em
     """Nanoseconds per emitted ray of each part of the fast path on one piece
     (:class:`lidarsim_core.pipeline.fused.FusedPath`), one thread: ``before_cast`` (angular
     error and frame changes), ``cast`` (the backend on every target), ``closest`` (closest
-    target, face, part, incidence), ``measure`` (range gate, range error, points) and
+    target, face, part, incidence) — or, when the cast runs inside the compiled loop
+    (Embree through its binding), ``cast_in_loop`` (body-frame rays, Embree's packets, the
+    float64 refinement and the closest target, every target) in place of both —, ``measure`` (range gate, range error, points) and
     ``columns`` (the other record columns, in NumPy)."""
     rays = fused.before_cast(batch, contexts, t_frame)
-    hits = fused.cast(rays)
-    best = fused.closest(rays, hits)
-    returned = fused.measure(rays, best, contexts)
-    probes = {
-        "before_cast": lambda: fused.before_cast(batch, contexts, t_frame),
-        "cast": lambda: fused.cast(rays),
-        "closest": lambda: fused.closest(rays, hits),
-        "measure": lambda: fused.measure(rays, best, contexts),
-        "columns": lambda: fused.columns(rays, best, returned, t_frame),
-    }
+    if fused.compiled is not None:  # the cast inside the compiled loop: cast and closest
+        best = fused.cast_closest(rays)
+        returned = fused.measure(rays, best, contexts)
+        probes = {
+            "before_cast": lambda: fused.before_cast(batch, contexts, t_frame),
+            "cast_in_loop": lambda: fused.cast_closest(rays),
+            "measure": lambda: fused.measure(rays, best, contexts),
+            "columns": lambda: fused.columns(rays, best, returned, t_frame),
+        }
+    else:
+        hits = fused.cast(rays)
+        best = fused.closest(rays, hits)
+        returned = fused.measure(rays, best, contexts)
+        probes = {
+            "before_cast": lambda: fused.before_cast(batch, contexts, t_frame),
+            "cast": lambda: fused.cast(rays),
+            "closest": lambda: fused.closest(rays, hits),
+            "measure": lambda: fused.measure(rays, best, contexts),
+            "columns": lambda: fused.columns(rays, best, returned, t_frame),
+        }
     seconds = with_threads(1, lambda: interleaved_best(probes, rounds)[0])
     return {key: 1e9 * value / emitted if emitted else 0.0 for key, value in seconds.items()}
 

@@ -97,7 +97,8 @@ def _warm_up_calls() -> list[tuple[str, Callable[[], Any], Any]]:
 
     from .cull import cull_by_grid, cull_by_grid_cones, cull_posed, direction_grid, motion_bound
     from .embree_cast import cast_faces, cast_refined
-    from .fused import body_rays, closest_hit, measure, normals, ray_stage
+    from .fused import body_rays, closest_hit, measure, normals, ray_stage, ray_stage_drawn
+    from .fused_cast import cast_closest
     from .patterns import cycle_rays, lissajous_directions, spinning_directions
     from .philox import ray_uniforms
     from .poses import chain_matrices, look_at_matrices
@@ -165,6 +166,9 @@ def _warm_up_calls() -> list[tuple[str, Callable[[], Any], Any]]:
         ("fused ray stage", lambda: ray_stage(one, index, np.zeros((1, 2), dtype=np.uint64),
                                               np.ones(1), np.eye(3)[None], np.empty((1, 3)),
                                               np.empty((1, 3))), ray_stage),
+        ("fused ray stage, normals drawn", lambda: ray_stage_drawn(
+            one, np.zeros((1, 1, 2)), np.ones(1), np.eye(3)[None], np.empty((1, 3)),
+            np.empty((1, 3))), ray_stage_drawn),
         ("fused body rays", lambda: body_rays(one, one, one, np.eye(3)[None], np.empty((1, 3)),
                                               np.empty((1, 3))), body_rays),
         ("fused closest hit", lambda: closest_hit(
@@ -174,7 +178,13 @@ def _warm_up_calls() -> list[tuple[str, Callable[[], Any], Any]]:
         ("fused measure", lambda: measure(np.ones(1), np.zeros(1, dtype=np.int16), one, index,
                                           0.0, 2.0, np.zeros(1, dtype=np.int64),
                                           np.zeros((1, 2), dtype=np.uint64),
-                                          np.ones((1, 2))), measure),
+                                          np.ones((1, 2)), np.empty((1, 0))), measure),
+        # no rays: compiled for the fast path's argument types without calling Embree
+        ("fused embree cast", lambda: cast_closest(
+            0, 0, 16, 21, np.empty((0, 3)), one, one, np.eye(3)[None], np.zeros(3), 1.0, 1e-6,
+            one, one, np.zeros(1, dtype=np.int32), 0, 0, np.full(0, np.inf),
+            np.full(0, -1, dtype=np.int16), np.full(0, -1, dtype=np.int64),
+            np.full(0, -1, dtype=np.int16), np.zeros(0)), cast_closest),
     ]
 
 

@@ -201,6 +201,22 @@ def ray_stage(direction, ray_index, keys, sigmas, sensor_matrix, flown, scene): 
 
 
 @njit(nogil=True, cache=True)
+def ray_stage_drawn(direction, drawn, sigmas, sensor_matrix, flown, scene):  # noqa: ANN001
+    """:func:`ray_stage` with normals drawn beforehand: ``drawn`` (A, N, 2), the two normals
+    of every ray for each angular error (another generator's, e.g. the Ziggurat's
+    :func:`lidarsim_core.kernels.ziggurat.ray_normals`: a draw with a rare rejection loop
+    inside this loop would slow every ray)."""
+    shared = sensor_matrix.shape[0] == 1
+    for i in range(direction.shape[0]):
+        x, y, z = direction[i, 0], direction[i, 1], direction[i, 2]
+        for a in range(drawn.shape[0]):
+            x, y, z = turn_ray(x, y, z, drawn[a, i, 0] * sigmas[a], drawn[a, i, 1] * sigmas[a])
+        flown[i, 0], flown[i, 1], flown[i, 2] = x, y, z
+        m = sensor_matrix[0] if shared else sensor_matrix[i]
+        scene[i, 0], scene[i, 1], scene[i, 2] = matvec(m, x, y, z, False)
+
+
+@njit(nogil=True, cache=True)
 def body_rays(scene, sensor_position, position, matrix, origin_out, direction_out):  # noqa: ANN001
     """Write the sensor's origin and the scene-frame directions in one target's body frame
     (:func:`lidarsim_core.geometry.frames.to_body` and ``rotate(..., inverse=True)``).
@@ -241,14 +257,16 @@ def closest_hit(target, distance, face, normal, direction, face_part, part_offse
 
 @njit(nogil=True, cache=True)
 def measure(best, best_target, flown, ray_index, range_min, range_max, kinds,  # noqa: ANN001
-            keys, params):  # noqa: ANN001, ANN201
+            keys, params, drawn):  # noqa: ANN001, ANN201
     """The range gate, the range errors and the point-record columns of the pulses that
     return.
 
     ``kinds``, ``keys``, ``params``: the chain's range models in chain order, (R,) kinds,
     (R, 2) Philox keys and (R, 2) parameters: :data:`RANGE_GAUSSIAN` (``range``: σ),
     :data:`RANGE_SYSTEMATIC` (``range_systematic``: 1 + scale, bias) and
-    :data:`RANGE_QUANTISED` (``range_quantisation``: step, offset). Returns ``rows`` (the
+    :data:`RANGE_QUANTISED` (``range_quantisation``: step, offset). ``drawn``: (R, M) normals
+    drawn beforehand for the M pulses that pass the range gate, in order (another generator's,
+    e.g. the Ziggurat's), or (R, 0) to draw the seed paper's here. Returns ``rows`` (the
     pulses kept, in order), the true and measured ranges, and the measured and true points
     (sensor frame, (3, M)), each of the exact length.
     """
@@ -271,8 +289,12 @@ def measure(best, best_target, flown, ray_index, range_min, range_max, kinds,  #
         counter = np.uint64(ray_index[i]) + np.uint64(1)
         for a in range(kinds.shape[0]):
             if kinds[a] == RANGE_GAUSSIAN:  # R + z σ (noise.gaussian.RangeError)
-                w = philox_block(counter, keys[a, 0], keys[a, 1])
-                measured = measured + ndtri(to_unit(w[0])) * params[a, 0]
+                if drawn.shape[1] > 0:
+                    z = drawn[a, k]
+                else:
+                    w = philox_block(counter, keys[a, 0], keys[a, 1])
+                    z = ndtri(to_unit(w[0]))
+                measured = measured + z * params[a, 0]
             elif kinds[a] == RANGE_SYSTEMATIC:  # R (1 + scale) + bias
                 measured = measured * params[a, 0] + params[a, 1]
             else:  # offset + q round((R - offset) / q), halves to even as NumPy's round

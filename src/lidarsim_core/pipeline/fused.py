@@ -11,6 +11,11 @@ temporaries per pulse on top of the cast. When a scenario runs exactly the seed 
 1. the angular error (Philox uniforms, inverse-CDF normals, two rotations) and the rotation
    into the scene frame; per target, the origin and directions in its body frame;
 2. the backend's cast of those arrays on each target (``backend.cast``, as the general path);
+   or, when every target's backend gives a compiled cast
+   (:meth:`~lidarsim_core.backends.base.RayBackend.compiled_cast`: Embree through its
+   binding), :func:`lidarsim_core.kernels.fused_cast.cast_closest` instead of steps 1's body
+   arrays, 2 and 3: per packet of rays, the body-frame rays, Embree's packet cast, the
+   float64 refinement and the closest target in one compiled loop;
 3. the closest target with its face, part and incidence cosine; the range gate; the range
    errors; the measured and true points, written into arrays of the returned pulses' length;
 4. the columns that need NumPy's own transcendental functions (azimuth, elevation, incidence
@@ -21,7 +26,7 @@ When it applies (:meth:`FusedPath.for_context`): the compiled kernels are on
 (``LIDARSIM_KERNELS`` is not ``numpy``), every noise model is the built-in ``angular``,
 ``range``, ``range_systematic`` or ``range_quantisation`` (not a subclass, not another model,
 not a third-party one), the normals are the seed paper's inverse CDF (``normals:
-inverse_cdf``), and the measurement stages are exactly
+inverse_cdf``) or the Ziggurat (``normals: ziggurat``), and the measurement stages are exactly
 the seed paper's (candidates, detection, returns, noise: no ``sensor.beam`` sub-rays,
 ``sensor.detection``, multipath, Sun or Earth, receiver, false alarms or kept undetected
 returns). Patterns, trajectories and backends may be anyone's: the path reads only the
@@ -40,7 +45,9 @@ from .. import kernels
 from ..noise.base import NoiseContext
 from ..noise.gaussian import AngularError, RangeError
 from ..noise.range_models import RangeBias, RangeQuantisation
-from ..noise.rng import INVERSE_CDF, stream_key
+from ..backends.base import CompiledCast
+from ..noise import ziggurat
+from ..noise.rng import INVERSE_CDF, NORMAL_GENERATORS, stream_key
 from ..patterns.base import RayBatch
 from ..patterns.geometry import az_el_from_directions
 from .bodyframe import body_frame_columns
@@ -62,8 +69,13 @@ class CastRays:
     batch: RayBatch
     #: (N, 3) directions flown, sensor frame.
     flown: np.ndarray
-    #: Per target: (N, 3) origins and (N, 3) directions in its body frame.
+    #: Per target: (N, 3) origins and (N, 3) directions in its body frame (empty when the
+    #: cast runs in the compiled loop, which computes them per packet).
     bodies: list[tuple[np.ndarray, np.ndarray]]
+    #: (N, 3) directions in the scene frame.
+    scene: np.ndarray | None = None
+    #: The piece's poses (:func:`lidarsim_core.pipeline.posing.piece_poses`).
+    posed: object = None
 
 
 @dataclass
@@ -98,6 +110,18 @@ class FusedPath:
         self.ctx = ctx
         self.angular = [i for i, m in enumerate(ctx.noise) if type(m) is AngularError]
         self.ranges = [i for i, m in enumerate(ctx.noise) if type(m) in RANGE_MODELS]
+        #: Whether the normals are the Ziggurat's (else the seed paper's inverse CDF).
+        self.ziggurat = ctx.scenario.normals != INVERSE_CDF
+        self._compiled: list[CompiledCast] | None | bool = False  # False: not asked yet
+
+    @property
+    def compiled(self) -> list[CompiledCast] | None:
+        """Per target, the backend's compiled cast (asked on first use: it prepares the
+        meshes); None: the cast goes through ``backend.cast`` (a backend without one)."""
+        if self._compiled is False:
+            casts = [self.ctx.backend.compiled_cast(target.mesh) for target in self.ctx.targets]
+            self._compiled = casts if casts and all(c is not None for c in casts) else None
+        return self._compiled  # type: ignore[return-value]
 
     @classmethod
     def for_context(cls, ctx: RunContext, stages: Sequence[Stage]) -> "FusedPath | None":
@@ -108,7 +132,7 @@ class FusedPath:
             return None
         if not all(type(m) is AngularError or type(m) in RANGE_MODELS for m in ctx.noise):
             return None
-        if ctx.scenario.normals != INVERSE_CDF:  # the kernels draw the seed paper's normals
+        if ctx.scenario.normals not in NORMAL_GENERATORS:  # the kernels draw these two
             return None
         if (ctx.sub_rays is not None or ctx.link is not None or ctx.spurious
                 or ctx.keep_undetected or ctx.keep_normals):
@@ -167,9 +191,17 @@ class FusedPath:
         keys, sigmas = self._keys(self.angular, contexts)
         posed = piece_poses(self.ctx, batch, t_frame)
         flown, scene = np.empty((n, 3)), np.empty((n, 3))
-        ray_stage(np.ascontiguousarray(batch.direction, dtype=np.float64),
-                  np.ascontiguousarray(batch.index, dtype=np.int64), keys, sigmas,
-                  _c(posed.sensor.matrix), flown, scene)
+        direction = np.ascontiguousarray(batch.direction, dtype=np.float64)
+        index = np.ascontiguousarray(batch.index, dtype=np.int64)
+        if self.ziggurat:  # the Ziggurat's normals first (its rare rejections stay out of it)
+            from ..kernels.fused import ray_stage_drawn
+
+            ray_stage_drawn(direction, self._drawn(keys, index, 2), sigmas,
+                            _c(posed.sensor.matrix), flown, scene)
+        else:
+            ray_stage(direction, index, keys, sigmas, _c(posed.sensor.matrix), flown, scene)
+        if self.compiled is not None:  # the compiled loop makes the body rays per packet
+            return CastRays(batch, flown, [], scene, posed)
         bodies = []
         sensor_position = _c(posed.sensor.position)
         for poses in posed.targets:
@@ -177,7 +209,7 @@ class FusedPath:
             body_rays(scene, sensor_position, _c(poses.position), _c(poses.matrix), origin,
                       direction)
             bodies.append((origin, direction))
-        return CastRays(batch, flown, bodies)
+        return CastRays(batch, flown, bodies, scene, posed)
 
     def cast(self, rays: CastRays) -> list:
         """The backend's hits on every target (none for an empty piece)."""
@@ -186,14 +218,33 @@ class FusedPath:
         return [self.ctx.backend.cast(target.mesh, origin, direction)
                 for target, (origin, direction) in zip(self.ctx.targets, rays.bodies)]
 
+    def cast_closest(self, rays: CastRays) -> ClosestHits:
+        """The closest target of every pulse, with its face, part and incidence cosine: the
+        cast and :meth:`closest`, or with compiled casts both in one compiled loop per
+        target."""
+        if self.compiled is None:
+            return self.closest(rays, self.cast(rays))
+        from ..kernels.fused_cast import cast_closest
+
+        out = _no_hits(len(rays.batch))
+        if len(rays.batch) == 0:
+            return out
+        sensor_position = _c(rays.posed.sensor.position)
+        for j, (target, poses, handle) in enumerate(zip(self.ctx.targets, rays.posed.targets,
+                                                        self.compiled)):
+            cast_closest(handle.intersect, handle.scene, handle.width, handle.fields,
+                         rays.scene, sensor_position, _c(poses.position), _c(poses.matrix),
+                         handle.centre, handle.radius, handle.epsilon, handle.first_vertex,
+                         handle.normals, np.ascontiguousarray(target.mesh.face_part),
+                         target.part_offset, j, out.distance, out.target, out.face, out.part,
+                         out.cos_incidence)
+        return out
+
     def closest(self, rays: CastRays, hits: list) -> ClosestHits:
         """The closest target of every pulse, with its face, part and incidence cosine."""
         from ..kernels.fused import closest_hit
 
-        n = len(rays.batch)
-        out = ClosestHits(np.full(n, np.inf), np.full(n, -1, dtype=np.int16),
-                          np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int16),
-                          np.zeros(n))
+        out = _no_hits(len(rays.batch))
         for j, (target, found, (_, direction)) in enumerate(zip(self.ctx.targets, hits,
                                                                  rays.bodies)):
             closest_hit(j, _c(found.distance), _c(found.face, np.int64), _c(found.normal),
@@ -205,12 +256,31 @@ class FusedPath:
                 ) -> Returned:
         """The range gate and the range errors: the pulses that return, with their ranges and
         points."""
-        from ..kernels.fused import measure
+        from ..kernels.fused import RANGE_GAUSSIAN, measure
 
-        return Returned(*measure(best.distance, best.target, rays.flown,
-                                 np.ascontiguousarray(rays.batch.index),
-                                 float(self.ctx.sensor.range_min_m),
-                                 float(self.ctx.range_limit), *self._range_models(contexts)))
+        kinds, keys, params = self._range_models(contexts)
+        range_min, range_max = float(self.ctx.sensor.range_min_m), float(self.ctx.range_limit)
+        index = np.ascontiguousarray(rays.batch.index, dtype=np.int64)
+        drawn = np.empty((len(kinds), 0))
+        if self.ziggurat and (kinds == RANGE_GAUSSIAN).any():
+            # the gate of the kernel, so that the normals are drawn for the returns only
+            r = best.distance
+            gate = (best.target >= 0) & (r >= range_min) & (r <= range_max)
+            drawn = np.ascontiguousarray(self._drawn(keys, index[gate], 1)[:, :, 0])
+        return Returned(*measure(best.distance, best.target, rays.flown, index, range_min,
+                                 range_max, kinds, keys, params, drawn))
+
+    @staticmethod
+    def _drawn(keys: np.ndarray, index: np.ndarray, draws: int) -> np.ndarray:
+        """(K, N, draws) Ziggurat normals of each stream key for rays ``index``."""
+        from ..kernels.ziggurat import ray_normals
+
+        out = np.empty((len(keys), len(index), draws))
+        for a in range(len(keys)):
+            key = keys[a].copy()
+            key.flags.writeable = False  # as the stream keys the kernel is compiled for
+            out[a] = ray_normals(key, index, draws, ziggurat.X_TABLE, ziggurat.F_TABLE)
+        return out
 
     def columns(self, rays: CastRays, best: ClosestHits, returned: Returned, t_frame: float
                 ) -> dict[str, np.ndarray]:
@@ -243,8 +313,14 @@ class FusedPath:
                 ) -> dict[str, np.ndarray]:
         """Point-record columns of a piece of pulses (what ``process_piece`` returns)."""
         rays = self.before_cast(batch, contexts, t_frame)
-        best = self.closest(rays, self.cast(rays))
+        best = self.cast_closest(rays)
         return self.columns(rays, best, self.measure(rays, best, contexts), t_frame)
+
+
+def _no_hits(n: int) -> ClosestHits:
+    return ClosestHits(np.full(n, np.inf), np.full(n, -1, dtype=np.int16),
+                       np.full(n, -1, dtype=np.int64), np.full(n, -1, dtype=np.int16),
+                       np.zeros(n))
 
 
 def _c(array: np.ndarray, dtype: type = np.float64) -> np.ndarray:
