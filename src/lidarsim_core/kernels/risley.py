@@ -95,8 +95,10 @@ def risley_directions(t, channel, incident, sin_wedge, cos_wedge, rotor_hz, phas
     """(N, 3) emitted directions at times ``t`` of ``channel``'s beams (``incident`` (C, 3))
     through prisms with wedge sine/cosine, rotor rates (Hz), phases (rad), whether the tilted
     face is the entrance, and refractive indices (all (P,)). Blocks of :data:`BLOCK` rays go
-    through every prism in turn; NaN rows where a beam is totally reflected."""
+    through every prism in turn; NaN rows where a beam is totally reflected. Also returns the
+    number of rows that are not finite."""
     n = t.shape[0]
+    bad = 0
     out = np.empty((n, 3))
     size = min(n, BLOCK)
     dx, dy, dz = np.empty(size), np.empty(size), np.empty(size)
@@ -116,7 +118,8 @@ def risley_directions(t, channel, incident, sin_wedge, cos_wedge, rotor_hz, phas
         for j in range(m):
             x, y, z = dx[j], dy[j], dz[j]
             norm = math.sqrt(x * x + y * y + z * z)
+            bad += not 0.0 < norm < math.inf  # else |x|, |y|, |z| <= norm: a finite row
             out_block[j, 0] = x / norm
             out_block[j, 1] = y / norm
             out_block[j, 2] = z / norm
-    return out
+    return out, bad
