@@ -13,7 +13,8 @@ loops instead:
   the ray), the same arithmetic in the same order as the NumPy code;
 * :mod:`.trig` and :mod:`.rose`: the rose pattern with a sine and cosine that LLVM can inline
   (within 2 ulp of the C library's);
-* :mod:`.risley`: the Risley prisms' vector refraction, one prism at a time over every ray;
+* :mod:`.risley`: the Risley prisms' vector refraction, blocks of rays through every prism
+  in one vectorised loop per prism;
   :mod:`.patterns`: firing schedules (time, slot, channel in one pass) and the spinning and
   Lissajous directions;
 * :mod:`.poses`: per-ray rotations of the built-in trajectories (chains of rotations at
