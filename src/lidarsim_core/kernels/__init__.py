@@ -13,7 +13,8 @@ loops instead:
   the ray), the same arithmetic in the same order as the NumPy code;
 * :mod:`.trig` and :mod:`.rose`: the rose pattern with a sine and cosine that LLVM can inline
   (within 2 ulp of the C library's);
-* :mod:`.risley`: the Risley prisms' vector refraction, one prism at a time over every ray;
+* :mod:`.risley`: the Risley prisms' vector refraction, blocks of rays through every prism
+  in one vectorised loop per prism;
   :mod:`.patterns`: firing schedules (time, slot, channel in one pass) and the spinning and
   Lissajous directions;
 * :mod:`.poses`: per-ray rotations of the built-in trajectories (chains of rotations at
@@ -129,7 +130,8 @@ def _warm_up_calls() -> list[tuple[str, Callable[[], Any], Any]]:
          spinning_directions),
         ("lissajous", lambda: lissajous_directions(np.zeros(1), 1.0, 0.0, 0.1, 1.0, 0.0, 0.1,
                                                    0.0), lissajous_directions),
-        ("risley", lambda: risley_directions(np.zeros(1), index, one, 0.1 * two, two, two, two,
+        ("risley", lambda: risley_directions(np.zeros(1), np.zeros(1, dtype=np.int16), one,
+                                             0.1 * two, two, two, two,
                                              np.array([True, False]), 1.5 * two),
          risley_directions),
         ("angular error", lambda: rotate_two_angles(one, np.zeros((1, 2))), rotate_two_angles),

@@ -167,20 +167,28 @@ class RisleyPattern(CycleTimedPattern):
         if kernels.enabled():  # the same optics, compiled (kernels.risley)
             from ..kernels.risley import risley_directions
 
-            prisms = self.options.prisms
-            wedge = np.radians([p.wedge_deg for p in prisms])
-            direction = risley_directions(
-                np.ascontiguousarray(t, dtype=np.float64), np.asarray(channel, dtype=np.int64),
-                self._incident, np.sin(wedge), np.cos(wedge),
+            direction, bad = risley_directions(np.ascontiguousarray(t, dtype=np.float64),
+                                               np.ascontiguousarray(channel, dtype=np.int16),
+                                               self._incident, *self._kernel_prisms)
+        else:
+            direction = self.trace(self._incident[channel], self.prism_rolls(t))
+            bad = not np.all(np.isfinite(direction))
+        if bad:
+            raise PluginError(f"{self.name}: a beam was totally reflected inside a prism")
+        return RayBatch(index, t, direction, channel)
+
+    @cached_property
+    def _kernel_prisms(self) -> tuple[np.ndarray, ...]:
+        """The prisms as :func:`lidarsim_core.kernels.risley.risley_directions` takes them:
+        wedge sines and cosines, rotor rates (Hz), phases (rad), whether the tilted face is
+        the entrance, refractive indices."""
+        prisms = self.options.prisms
+        wedge = np.radians([p.wedge_deg for p in prisms])
+        return (np.sin(wedge), np.cos(wedge),
                 np.array([p.rotor_hz for p in prisms], dtype=np.float64),
                 np.array([math.radians(p.phase_deg) for p in prisms]),
                 np.array([p.wedge_face == "entrance" for p in prisms]),
                 np.array(self._index, dtype=np.float64))
-        else:
-            direction = self.trace(self._incident[channel], self.prism_rolls(t))
-        if not np.all(np.isfinite(direction)):
-            raise PluginError(f"{self.name}: a beam was totally reflected inside a prism")
-        return RayBatch(index, t, direction, channel)
 
     @cached_property
     def _max_off_axis(self) -> float:
