@@ -171,9 +171,17 @@ class PointCloud:
 
     @classmethod
     def concatenate(cls, parts: list[dict[str, np.ndarray]], frame: FrameInfo) -> "PointCloud":
-        """Join per-chunk column dictionaries into one cloud."""
+        """Join per-chunk column dictionaries into one cloud.
+
+        The cloud takes the parts' arrays over: a single part's column that already has its
+        dtype, is C-contiguous, writeable and shares no memory with another column is used
+        as it is, not copied (the simulation's pieces are; the values are the same either
+        way). Every other column is a new array.
+        """
         if not parts:
             return cls.empty(frame)
+        if len(parts) == 1:
+            return cls(_taken_over(parts[0]), frame)
         columns = {k: np.concatenate([p[k] for p in parts]).astype(v, copy=False)
                    for k, v in POINT_FIELDS.items()}
         # optional columns every chunk has (multipath's ``bounces``, ``x_body``...), in order
@@ -198,3 +206,26 @@ class PointCloud:
             out["points_per_part"] = {self.frame.part_names[i]: int(c)
                                       for i, c in zip(labels, counts)}
         return out
+
+
+def _taken_over(part: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The columns of one part as :meth:`PointCloud.concatenate` joins them: the point
+    record's columns in :data:`POINT_FIELDS` order with their dtypes, then the optional ones;
+    an array is kept when it is usable as it is (its dtype, C-contiguous, writeable, alone in
+    its memory), else copied."""
+    columns: dict[str, np.ndarray] = {}
+    spans: list[tuple[int, int]] = []  # memory of the arrays kept, to keep no two aliased
+    for key in (*POINT_FIELDS, *(k for k in part if k not in POINT_FIELDS)):
+        array = np.asarray(part[key])
+        dtype = POINT_FIELDS.get(key, array.dtype)
+        if array.dtype == dtype and array.flags.c_contiguous and array.flags.writeable \
+                and array.ndim == 1:
+            start = array.__array_interface__["data"][0]
+            span = (start, start + array.nbytes)
+            if all(span[1] <= lo or hi <= span[0] for lo, hi in spans):
+                if array.nbytes:
+                    spans.append(span)
+                columns[key] = array
+                continue
+        columns[key] = np.array(array, dtype=dtype, order="C")
+    return columns
