@@ -39,6 +39,7 @@ from typing import Any, Iterator, Sequence
 
 import numpy as np
 
+from ..base.allocator import keep_freed_memory
 from ..base.errors import ConfigError
 from ..base.signals import interrupt_behind
 from ..base.threads import ordered_map, piece_size, split_range, worker_threads
@@ -104,6 +105,7 @@ class Simulation:
 
     def __init__(self, scenario: Scenario, registry: Registry | None = None) -> None:
         registry = registry or get_registry()
+        keep_freed_memory()  # frames reuse the last one's pages (lidarsim_core.base.allocator)
         src = scenario.source
         sheet = datasheet_for(scenario, registry)
         pattern = pattern_for(sheet, scenario.sensor.pattern_options, source=src,
