@@ -214,18 +214,27 @@ def _taken_over(part: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
     an array is kept when it is usable as it is (its dtype, C-contiguous, writeable, alone in
     its memory), else copied."""
     columns: dict[str, np.ndarray] = {}
-    spans: list[tuple[int, int]] = []  # memory of the arrays kept, to keep no two aliased
+    spans: list[tuple[int, int, str]] = []  # memory of the arrays kept as they are
     for key in (*POINT_FIELDS, *(k for k in part if k not in POINT_FIELDS)):
         array = np.asarray(part[key])
-        dtype = POINT_FIELDS.get(key, array.dtype)
-        if array.dtype == dtype and array.flags.c_contiguous and array.flags.writeable \
-                and array.ndim == 1:
-            start = array.__array_interface__["data"][0]
-            span = (start, start + array.nbytes)
-            if all(span[1] <= lo or hi <= span[0] for lo, hi in spans):
-                if array.nbytes:
-                    spans.append(span)
-                columns[key] = array
-                continue
-        columns[key] = np.array(array, dtype=dtype, order="C")
+        dtype = _DTYPES.get(key, array.dtype)
+        if array.dtype == dtype and array.ndim == 1 and array.flags.c_contiguous \
+                and array.flags.writeable:
+            columns[key] = array
+            if array.nbytes:
+                start = array.__array_interface__["data"][0]
+                spans.append((start, start + array.nbytes, key))
+        else:
+            columns[key] = np.array(array, dtype=dtype, order="C")
+    # two arrays sharing memory (the same array twice, overlapping views): all but one copied
+    spans.sort()
+    end = 0
+    for start, stop, key in spans:
+        if start < end:
+            columns[key] = columns[key].copy()
+        else:
+            end = stop
     return columns
+
+
+_DTYPES = {key: np.dtype(code) for key, code in POINT_FIELDS.items()}
