@@ -21,14 +21,17 @@ from .._version import __version__
 from ..geometry.poses import relative_rows
 from ..records.pointcloud import FrameInfo
 from .context import RunContext
+from .spanposes import SpanPoses, span_poses
 
 
 def frame_infos(ctx: RunContext, frames: Sequence[int], measurement: dict[str, Any],
-                intervals: Sequence[tuple[float, float]] | None = None) -> list[FrameInfo]:
+                intervals: Sequence[tuple[float, float]] | None = None,
+                poses: SpanPoses | None = None) -> list[FrameInfo]:
     """Metadata of ``frames`` of a run (what :meth:`Simulation.frame_info` gives for each);
     ``measurement`` is the simulation's description of its measurement model
     (:meth:`Simulation.measurement_info`), the frames' ``extra``; ``intervals`` (one
-    ``(t_start, t_end)`` per frame) replace the scenario's frame intervals."""
+    ``(t_start, t_end)`` per frame) replace the scenario's frame intervals; ``poses``: the
+    trajectories' poses when already looked up at the frames' starts and ends, in order."""
     frames = [int(f) for f in frames]
     if not frames:
         return []
@@ -38,8 +41,8 @@ def frame_infos(ctx: RunContext, frames: Sequence[int], measurement: dict[str, A
     intervals = [(float(a), float(b)) for a, b in intervals]
     # rows 2i and 2i + 1: frame i's start and end
     times = np.array([t for interval in intervals for t in interval], dtype=np.float64)
-    sensor = ctx.sensor_trajectory.poses_at(times)
-    targets = [t.trajectory.poses_at(times) for t in ctx.targets]
+    looked_up = (None if poses is None else poses.at(times)) or span_poses(ctx, times)
+    sensor, targets = looked_up.sensor, looked_up.targets
     sensor_rec = sensor.to_records()
     scene_rec = [p.to_records() for p in targets]
     inside_rec = [relative_rows(p, sensor).to_records() for p in targets]

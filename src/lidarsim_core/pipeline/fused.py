@@ -288,7 +288,8 @@ class FusedPath:
         in its order); those made of NumPy's transcendental functions (azimuth, elevation,
         incidence angle, intensity) are computed here, on the returned pulses only."""
         ctx, batch, rows = self.ctx, rays.batch, returned.rows
-        azimuth, elevation = az_el_from_directions(batch.direction[rows])
+        # np.take gathers the (M, 3) rows ~4x faster than fancy indexing; the same array
+        azimuth, elevation = az_el_from_directions(np.take(batch.direction, rows, axis=0))
         cos_incidence = best.cos_incidence[rows]
         part = best.part[rows]
         ones = np.ones(len(rows), dtype=np.uint8)

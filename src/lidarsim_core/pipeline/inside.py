@@ -7,6 +7,7 @@ from __future__ import annotations
 from typing import Any
 
 from .context import RunContext
+from .spanposes import SpanPoses, span_poses
 
 
 # ---- impossible geometry -----------------------------------------------------------------
@@ -22,9 +23,11 @@ def _probe_directions() -> Any:
 
 
 def check_sensor_outside(ctx: RunContext, frame: int,
-                         interval: tuple[float, float] | None = None) -> None:
+                         interval: tuple[float, float] | None = None,
+                         poses: SpanPoses | None = None) -> None:
     """Refuse a frame whose sensor is inside a closed target at the frame's start or end
-    (``interval``: the frame's ``(t_start, t_end)`` when it is not the scenario's).
+    (``interval``: the frame's ``(t_start, t_end)`` when it is not the scenario's; ``poses``:
+    the trajectories' poses when already looked up at the instants checked).
 
     The sensor counts as inside when probe rays in 14 directions all hit the target and all
     hit the back (inner) side of a face first, which is only possible from inside a closed,
@@ -43,11 +46,11 @@ def check_sensor_outside(ctx: RunContext, frame: int,
     scenario = ctx.scenario
     t0, t1 = scenario.scan.frame_interval(frame) if interval is None else interval
     times = np.array([t0] if scenario.scan.motion == "frozen" else [t0, t1], dtype=np.float64)
-    sensor_at = ctx.sensor_trajectory.poses_at(times).position
+    looked_up = (None if poses is None else poses.at(times)) or span_poses(ctx, times)
+    sensor_at = looked_up.sensor.position
     dirs = _probe_directions()
-    for i, target in enumerate(ctx.targets):
-        poses = target.trajectory.poses_at(times)
-        origins = poses.apply_inverse(sensor_at)
+    for i, (target, target_poses) in enumerate(zip(ctx.targets, looked_up.targets)):
+        origins = target_poses.apply_inverse(sensor_at)
         lo, hi = target.mesh.bounds
         for t, origin in zip(times, origins):
             if (origin < lo).any() or (origin > hi).any():

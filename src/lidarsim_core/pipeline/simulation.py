@@ -39,6 +39,7 @@ from typing import Any, Iterator, Sequence
 
 import numpy as np
 
+from ..base.allocator import keep_freed_memory
 from ..base.errors import ConfigError
 from ..base.signals import interrupt_behind
 from ..base.threads import ordered_map, piece_size, split_range, worker_threads
@@ -69,6 +70,7 @@ from .cull import PulseCuller, culled_piece
 from .frameinfo import frame_infos
 from .fused import FusedPath
 from .inside import check_sensor_outside
+from .spanposes import SpanPoses, span_poses
 from .stages import Stage, measurement_stages
 from .units import warn_about_units
 
@@ -103,6 +105,7 @@ class Simulation:
 
     def __init__(self, scenario: Scenario, registry: Registry | None = None) -> None:
         registry = registry or get_registry()
+        keep_freed_memory()  # frames reuse the last one's pages (lidarsim_core.base.allocator)
         src = scenario.source
         sheet = datasheet_for(scenario, registry)
         pattern = pattern_for(sheet, scenario.sensor.pattern_options, source=src,
@@ -184,9 +187,26 @@ class Simulation:
         ``[t_start, t_end)`` instead of the scenario's interval (the stepping API,
         :mod:`lidarsim_core.loop`, scans intervals it is given; a scenario frame is this span
         of its own interval, to the bit)."""
+        done: list[dict[str, np.ndarray]] = []
+        current = 0
+        for c, columns in self._span_pieces(frame, t_start, t_end, chunk_rays,
+                                            outside_checked=outside_checked):
+            if c != current:
+                yield _merged(done)
+                done, current = [], c
+            done.append(columns)
+        if done:
+            yield _merged(done)
+
+    def _span_pieces(self, frame: int, t_start: float, t_end: float, chunk_rays: int | None,
+                     poses: SpanPoses | None = None, *, outside_checked: bool = False
+                     ) -> Iterator[tuple[int, dict[str, np.ndarray]]]:
+        """The point-record columns of every piece of ``[t_start, t_end)`` in order, each
+        with the number of its chunk (``poses``: the trajectories' poses at ``t_start`` and
+        ``t_end`` when already looked up; ``outside_checked``: as in :meth:`iter_chunks`)."""
         ctx = self.context
         if not outside_checked:
-            check_sensor_outside(ctx, frame, (t_start, t_end))
+            check_sensor_outside(ctx, frame, (t_start, t_end), poses)
         chunk = chunk_rays or ctx.scenario.chunk_rays
         k0, k1 = ctx.pattern.frame_index_range(t_start, t_end)
         contexts = ctx.noise_contexts(frame)
@@ -207,26 +227,14 @@ class Simulation:
                 return self.fused.process(batch, contexts, t_frame)
             return process_piece(ctx, self.stages, batch, contexts, t_frame, frame)
 
-        def merged(parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
-            if len(parts) == 1:
-                return parts[0]
-            return {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
-
-        done: list[dict[str, np.ndarray]] = []
-        current = 0
         try:
             for (c, _, _), columns in zip(pieces, ordered_map(work, pieces, workers)):
-                if c != current:
-                    yield merged(done)
-                    done, current = [], c
-                done.append(columns)
+                yield c, columns
         except Exception as exc:  # Ctrl-C or SIGTERM while a compiled kernel was called
             interrupt = interrupt_behind(exc)
             if interrupt is None:
                 raise
             raise interrupt from None
-        if done:
-            yield merged(done)
 
     def frame_info(self, frame: int) -> FrameInfo:
         """Metadata of ``frame``: timing, poses at start and end, provenance."""
@@ -273,8 +281,21 @@ class Simulation:
         if not 0 <= frame < frames:
             raise ConfigError(f"frame {frame} is outside 0..{frames - 1}",
                               source=self.context.scenario.source, field="scan.frames")
-        chunks = list(self.iter_chunks(frame, chunk_rays))
-        return PointCloud.concatenate(chunks, self.frame_info(frame))
+        # the poses at the frame's start and end serve the inside check and the metadata;
+        # the pieces are joined once (one piece: its arrays as they are), not per chunk
+        t_start, t_end = self.context.scenario.scan.frame_interval(frame)
+        poses = span_poses(self.context, np.array([t_start, t_end], dtype=np.float64))
+        pieces = [columns for _, columns in
+                  self._span_pieces(frame, t_start, t_end, chunk_rays, poses)]
+        info = frame_infos(self.context, [frame], self.measurement_info(), poses=poses)[0]
+        return PointCloud.concatenate(pieces, info)
+
+
+def _merged(parts: list[dict[str, np.ndarray]]) -> dict[str, np.ndarray]:
+    """The columns of consecutive pieces as one chunk."""
+    if len(parts) == 1:
+        return parts[0]
+    return {key: np.concatenate([p[key] for p in parts]) for key in parts[0]}
 
 
 def _measurement(scenario: Scenario, sheet: Any, targets: list[Target], noise: list[Any],

@@ -171,9 +171,17 @@ class PointCloud:
 
     @classmethod
     def concatenate(cls, parts: list[dict[str, np.ndarray]], frame: FrameInfo) -> "PointCloud":
-        """Join per-chunk column dictionaries into one cloud."""
+        """Join per-chunk column dictionaries into one cloud.
+
+        The cloud takes the parts' arrays over: a single part's column that already has its
+        dtype, is C-contiguous, writeable and shares no memory with another column is used
+        as it is, not copied (the simulation's pieces are; the values are the same either
+        way). Every other column is a new array.
+        """
         if not parts:
             return cls.empty(frame)
+        if len(parts) == 1:
+            return cls(_taken_over(parts[0]), frame)
         columns = {k: np.concatenate([p[k] for p in parts]).astype(v, copy=False)
                    for k, v in POINT_FIELDS.items()}
         # optional columns every chunk has (multipath's ``bounces``, ``x_body``...), in order
@@ -198,3 +206,35 @@ class PointCloud:
             out["points_per_part"] = {self.frame.part_names[i]: int(c)
                                       for i, c in zip(labels, counts)}
         return out
+
+
+def _taken_over(part: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The columns of one part as :meth:`PointCloud.concatenate` joins them: the point
+    record's columns in :data:`POINT_FIELDS` order with their dtypes, then the optional ones;
+    an array is kept when it is usable as it is (its dtype, C-contiguous, writeable, alone in
+    its memory), else copied."""
+    columns: dict[str, np.ndarray] = {}
+    spans: list[tuple[int, int, str]] = []  # memory of the arrays kept as they are
+    for key in (*POINT_FIELDS, *(k for k in part if k not in POINT_FIELDS)):
+        array = np.asarray(part[key])
+        dtype = _DTYPES.get(key, array.dtype)
+        if array.dtype == dtype and array.ndim == 1 and array.flags.c_contiguous \
+                and array.flags.writeable:
+            columns[key] = array
+            if array.nbytes:
+                start = array.__array_interface__["data"][0]
+                spans.append((start, start + array.nbytes, key))
+        else:
+            columns[key] = np.array(array, dtype=dtype, order="C")
+    # two arrays sharing memory (the same array twice, overlapping views): all but one copied
+    spans.sort()
+    end = 0
+    for start, stop, key in spans:
+        if start < end:
+            columns[key] = columns[key].copy()
+        else:
+            end = stop
+    return columns
+
+
+_DTYPES = {key: np.dtype(code) for key, code in POINT_FIELDS.items()}

@@ -178,18 +178,34 @@ class MaterialTable:
     def effective(self, part: np.ndarray, cos_incidence: np.ndarray) -> np.ndarray:
         """ρ_eff for hits on ``part`` (scene-wide indices) at incidence cosines
         ``cos_incidence`` (|cos|, 0-1)."""
+        # per hit: the tables' rows gathered once, the arithmetic on the lit hits in place
+        # (each operation is the same IEEE operation on the same values as written out in
+        # the formula, so the bits do not depend on it; NumPy's exp and arccos keep their
+        # inputs' layout)
+        part = np.asarray(part)
         c = np.clip(np.asarray(cos_incidence, dtype=np.float64), 0.0, 1.0)
-        out = self.diffuse[part] * c
+        out = np.take(self.diffuse, part)
+        out *= c
         if self.specular.any():
-            spec = self.specular[part]
-            m2 = self.slope2[part]
-            lit = (spec > 0) & (c > 0)
+            lit = np.take(self.specular > 0, part)
+            lit &= c > 0
             if lit.any():
+                lit_part = part[lit]
                 cl = c[lit]
                 c2 = cl * cl
-                tan2 = (1.0 - c2) / c2
-                lobe = np.exp(-tan2 / m2[lit]) / (4.0 * m2[lit] * c2 * c2 * cl)
-                out[lit] += spec[lit] * lobe
+                m2 = np.take(self.slope2, lit_part)
+                tan2 = np.subtract(1.0, c2)
+                tan2 /= c2
+                np.negative(tan2, out=tan2)  # -tan2 / m2: the sign flip is exact
+                tan2 /= m2
+                lobe = np.exp(tan2)
+                denominator = 4.0 * m2
+                denominator *= c2
+                denominator *= c2
+                denominator *= cl
+                lobe /= denominator
+                lobe *= np.take(self.specular, lit_part)
+                out[lit] += lobe
         if self.retro.any():
             gain = self.retro[part]
             on = gain > 0
