@@ -28,6 +28,8 @@ from llvmlite import ir
 from numba import njit, types
 from numba.extending import intrinsic
 
+from .raycast import plane_distance
+
 _INVALID = np.uint32(0xFFFFFFFF)
 _MASK_ALL = np.uint32(0xFFFFFFFF)
 _TFAR = np.float32(1e37)
@@ -145,20 +147,15 @@ def _refine(prim, row, origins, directions, epsilon, first_vertex, normals, face
     if prim == _INVALID:
         return
     f = np.int64(prim)
-    nx, ny, nz = normals[f, 0], normals[f, 1], normals[f, 2]
-    ox, oy, oz = origins[row, 0], origins[row, 1], origins[row, 2]
-    dx, dy, dz = directions[row, 0], directions[row, 1], directions[row, 2]
-    denom = dx * nx + dy * ny + dz * nz
-    vx = first_vertex[f, 0] - ox
-    vy = first_vertex[f, 1] - oy
-    vz = first_vertex[f, 2] - oz
-    distance = (vx * nx + vy * ny + vz * nz) / denom
+    distance = plane_distance(f, origins[row, 0], origins[row, 1], origins[row, 2],
+                              directions[row, 0], directions[row, 1], directions[row, 2],
+                              first_vertex, normals)
     if distance > epsilon:
         face_out[row] = f
         distance_out[row] = distance
-        normal_out[row, 0] = nx
-        normal_out[row, 1] = ny
-        normal_out[row, 2] = nz
+        normal_out[row, 0] = normals[f, 0]
+        normal_out[row, 1] = normals[f, 1]
+        normal_out[row, 2] = normals[f, 2]
 
 
 @njit(nogil=True, cache=True)

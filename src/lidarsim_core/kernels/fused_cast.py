@@ -23,6 +23,7 @@ from numba import njit
 
 from .embree_cast import _aligned_words, _intersect1, _intersect_packet, _rayhit_buffer, _set_ray
 from .fused import matvec
+from .raycast import plane_distance
 
 _INVALID = np.uint32(0xFFFFFFFF)
 
@@ -97,13 +98,9 @@ def cast_closest(intersect, scene, width, fields, directions, sensor_position, p
             i = start + lane
             f = np.int64(prim)
             nx, ny, nz = normals[f, 0], normals[f, 1], normals[f, 2]
-            ox, oy, oz = body[lane, 0], body[lane, 1], body[lane, 2]
             dx, dy, dz = body[lane, 3], body[lane, 4], body[lane, 5]
-            denom = dx * nx + dy * ny + dz * nz
-            vx = first_vertex[f, 0] - ox
-            vy = first_vertex[f, 1] - oy
-            vz = first_vertex[f, 2] - oz
-            distance = (vx * nx + vy * ny + vz * nz) / denom
+            distance = plane_distance(f, body[lane, 0], body[lane, 1], body[lane, 2],
+                                      dx, dy, dz, first_vertex, normals)
             if distance > epsilon and distance < best[i]:
                 best[i] = distance
                 best_target[i] = target

@@ -36,6 +36,18 @@ def embree_rays(origins, directions, centre, radius, epsilon):  # noqa: ANN001, 
 
 
 @njit(nogil=True, cache=True)
+def plane_distance(f, ox, oy, oz, dx, dy, dz, first_vertex, normals):  # noqa: ANN001, ANN201
+    """The float64 distance along the ray ``(o, d)`` to the plane of face ``f`` (through its
+    first vertex, with its unit normal): the one refinement every Embree path shares."""
+    nx, ny, nz = normals[f, 0], normals[f, 1], normals[f, 2]
+    denom = dx * nx + dy * ny + dz * nz
+    vx = first_vertex[f, 0] - ox
+    vy = first_vertex[f, 1] - oy
+    vz = first_vertex[f, 2] - oz
+    return (vx * nx + vy * ny + vz * nz) / denom
+
+
+@njit(nogil=True, cache=True)
 def refine_hits(face32, origins, directions, first_vertex, normals, epsilon, face_out,
                 distance_out, normal_out, offset):  # noqa: ANN001, ANN201
     """Write rays ``offset + i``: the face Embree found, the float64 distance to its plane and
@@ -51,17 +63,12 @@ def refine_hits(face32, origins, directions, first_vertex, normals, epsilon, fac
         normal_out[row, 2] = np.nan
         if f < 0:
             continue
-        nx, ny, nz = normals[f, 0], normals[f, 1], normals[f, 2]
-        ox, oy, oz = origins[row, 0], origins[row, 1], origins[row, 2]
-        dx, dy, dz = directions[row, 0], directions[row, 1], directions[row, 2]
-        denom = dx * nx + dy * ny + dz * nz
-        vx = first_vertex[f, 0] - ox
-        vy = first_vertex[f, 1] - oy
-        vz = first_vertex[f, 2] - oz
-        distance = (vx * nx + vy * ny + vz * nz) / denom
+        distance = plane_distance(f, origins[row, 0], origins[row, 1], origins[row, 2],
+                                  directions[row, 0], directions[row, 1], directions[row, 2],
+                                  first_vertex, normals)
         if distance > epsilon:
             face_out[row] = f
             distance_out[row] = distance
-            normal_out[row, 0] = nx
-            normal_out[row, 1] = ny
-            normal_out[row, 2] = nz
+            normal_out[row, 0] = normals[f, 0]
+            normal_out[row, 1] = normals[f, 1]
+            normal_out[row, 2] = normals[f, 2]
