@@ -40,20 +40,9 @@ def atomic_output(path: str | Path, *, overwrite: bool = True) -> Iterator[IO[by
     from .outputs import check_replaceable
 
     check_replaceable(path)  # a device, FIFO or socket is never replaced by a regular file
-    tmp: Path | None = parent / f".{path.name}.{secrets.token_hex(6)}.part"
+    tmp: str | None = None
     try:
-        try:
-            # O_EXCL: a name that exists is never ours (and is then left alone); the mode is
-            # reduced by the umask as for any new file
-            fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0),
-                         0o666)
-        except PermissionError:
-            tmp = None
-            raise OutputError(f"output directory is not writable: {parent}",
-                              source=path) from None
-        except OSError as exc:
-            tmp = None
-            raise OutputError(f"cannot write here: {exc.strerror}", source=path) from None
+        fd, tmp = _open_part(path, os.fspath(parent))
         deferred = getattr(_local, "deferred", None)
         with os.fdopen(fd, "wb") as stream:
             yield stream
@@ -64,11 +53,7 @@ def atomic_output(path: str | Path, *, overwrite: bool = True) -> Iterator[IO[by
         if deferred is not None:
             deferred.append(path)
     except BaseException as exc:
-        if tmp is not None:
-            try:
-                os.unlink(tmp)
-            except FileNotFoundError:
-                pass
+        _discard(tmp)
         if isinstance(exc, UserInputError) and exc.source is None:
             # an exporter's complaint (a column that does not fit the format) names the file
             raise type(exc)(exc.message, source=path, field=exc.field) from None
@@ -116,30 +101,10 @@ def write_bytes_atomic(path: str | Path, data: bytes | bytearray | memoryview, *
     path = Path(path)
     target = os.fspath(path)
     _check_existing(path, overwrite)
-    parent, name = os.path.split(target)
+    parent = os.path.dirname(target)
     tmp: str | None = None
     try:
-        try:
-            for attempt in range(8):  # a name taken (a leftover) is never ours: another
-                tmp = os.path.join(parent, f".{name}.{_token()}.part")
-                try:
-                    fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL |
-                                 getattr(os, "O_BINARY", 0), 0o666)
-                    break
-                except FileExistsError:
-                    if attempt == 7:
-                        raise
-        except PermissionError:
-            tmp = None
-            raise OutputError(f"output directory is not writable: {parent or '.'}",
-                              source=path) from None
-        except (FileNotFoundError, NotADirectoryError):
-            tmp = None
-            raise OutputError(f"output directory does not exist: {parent or '.'}",
-                              source=path) from None
-        except OSError as exc:
-            tmp = None
-            raise OutputError(f"cannot write here: {exc.strerror}", source=path) from None
+        fd, tmp = _open_part(path, parent)
         deferred = getattr(_local, "deferred", None)
         try:
             view = memoryview(data).cast("B")
@@ -153,15 +118,47 @@ def write_bytes_atomic(path: str | Path, data: bytes | bytearray | memoryview, *
         if deferred is not None:
             deferred.append(path)
     except BaseException as exc:
-        if tmp is not None:
-            try:
-                os.unlink(tmp)
-            except FileNotFoundError:
-                pass
+        _discard(tmp)
         if isinstance(exc, OSError) and not isinstance(exc, OutputError):
             raise OutputError(f"cannot write: {describe_os_error(exc)}", source=path) from exc
         raise
     return path
+
+
+def _open_part(path: Path, parent: str) -> tuple[int, str]:
+    """A new hidden temporary file beside ``path`` in ``parent`` (``""``: the current
+    directory), opened for writing: its descriptor and name. O_EXCL: a name that exists (a
+    leftover) is never ours and is left alone, another is drawn; the mode is reduced by the
+    umask as for any new file. Failures are the one-line :class:`OutputError` naming
+    ``path``."""
+    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0)
+    attempts = 8
+    try:
+        while True:
+            tmp = os.path.join(parent, f".{path.name}.{_token()}.part")
+            try:
+                return os.open(tmp, flags, 0o666), tmp
+            except FileExistsError:
+                attempts -= 1
+                if not attempts:
+                    raise
+    except PermissionError:
+        raise OutputError(f"output directory is not writable: {parent or '.'}",
+                          source=path) from None
+    except (FileNotFoundError, NotADirectoryError):
+        raise OutputError(f"output directory does not exist: {parent or '.'}",
+                          source=path) from None
+    except OSError as exc:
+        raise OutputError(f"cannot write here: {exc.strerror}", source=path) from None
+
+
+def _discard(tmp: str | None) -> None:
+    """Remove a temporary file a failed write leaves (if it was created)."""
+    if tmp is not None:
+        try:
+            os.unlink(tmp)
+        except FileNotFoundError:
+            pass
 
 
 _tokens = threading.local()

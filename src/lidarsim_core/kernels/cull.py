@@ -137,6 +137,25 @@ def direction_grid(corners, cells):  # noqa: ANN001, ANN201
     return grid
 
 
+@njit(cache=True)
+def in_grid(x, y, z, grid, half, cells):  # noqa: ANN001, ANN201
+    """Whether direction ``(x, y, z)`` falls in a set cell of :func:`direction_grid`'s cube
+    map (``half`` = cells / 2); a zero vector is kept (not a direction: the exact path
+    decides)."""
+    ax, ay, az = abs(x), abs(y), abs(z)
+    if ax >= ay and ax >= az:
+        face, depth, u, v = (0 if x > 0 else 1), ax, y, z
+    elif ay >= az:
+        face, depth, u, v = (2 if y > 0 else 3), ay, z, x
+    else:
+        face, depth, u, v = (4 if z > 0 else 5), az, x, y
+    if depth == 0.0:
+        return True
+    ci = min(max(int(math.floor((u / depth + 1.0) * half)), 0), cells - 1)
+    cj = min(max(int(math.floor((v / depth + 1.0) * half)), 0), cells - 1)
+    return bool(grid[face, ci, cj])
+
+
 @njit(nogil=True, cache=True)
 def cull_by_grid(directions, grid):  # noqa: ANN001, ANN201
     """Indices of the directions whose cell of :func:`direction_grid`'s cube map is set."""
@@ -146,21 +165,7 @@ def cull_by_grid(directions, grid):  # noqa: ANN001, ANN201
     keep = np.empty(n, dtype=np.int64)
     kept = 0
     for i in range(n):
-        x, y, z = directions[i, 0], directions[i, 1], directions[i, 2]
-        ax, ay, az = abs(x), abs(y), abs(z)
-        if ax >= ay and ax >= az:
-            face, depth, u, v = (0 if x > 0 else 1), ax, y, z
-        elif ay >= az:
-            face, depth, u, v = (2 if y > 0 else 3), ay, z, x
-        else:
-            face, depth, u, v = (4 if z > 0 else 5), az, x, y
-        if depth == 0.0:  # not a direction: keep it, the exact path decides
-            keep[kept] = i
-            kept += 1
-            continue
-        ci = min(max(int(math.floor((u / depth + 1.0) * half)), 0), cells - 1)
-        cj = min(max(int(math.floor((v / depth + 1.0) * half)), 0), cells - 1)
-        if grid[face, ci, cj]:
+        if in_grid(directions[i, 0], directions[i, 1], directions[i, 2], grid, half, cells):
             keep[kept] = i
             kept += 1
     return keep[:kept]
@@ -312,24 +317,10 @@ def cull_by_grid_cones(directions, grid, use_grid, block, axes, cosines):  # noq
     cones = axes.shape[1]
     for i in range(n):
         x, y, z = directions[i, 0], directions[i, 1], directions[i, 2]
-        if use_grid:
-            ax, ay, az = abs(x), abs(y), abs(z)
-            if ax >= ay and ax >= az:
-                face, depth, u, v = (0 if x > 0 else 1), ax, y, z
-            elif ay >= az:
-                face, depth, u, v = (2 if y > 0 else 3), ay, z, x
-            else:
-                face, depth, u, v = (4 if z > 0 else 5), az, x, y
-            if depth == 0.0:  # not a direction: keep it, the exact path decides
-                keep[kept] = i
-                kept += 1
-                continue
-            ci = min(max(int(math.floor((u / depth + 1.0) * half)), 0), cells - 1)
-            cj = min(max(int(math.floor((v / depth + 1.0) * half)), 0), cells - 1)
-            if grid[face, ci, cj]:
-                keep[kept] = i
-                kept += 1
-                continue
+        if use_grid and in_grid(x, y, z, grid, half, cells):
+            keep[kept] = i
+            kept += 1
+            continue
         if cones == 0:
             continue
         b = i // block

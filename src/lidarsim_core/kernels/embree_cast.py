@@ -28,7 +28,7 @@ from llvmlite import ir
 from numba import njit, types
 from numba.extending import intrinsic
 
-from .raycast import plane_distance
+from .raycast import refine_row
 
 _INVALID = np.uint32(0xFFFFFFFF)
 _MASK_ALL = np.uint32(0xFFFFFFFF)
@@ -133,29 +133,10 @@ def _shifted_ray(buf, flt, width, lane, origins, directions, i, centre, radius,
              dx, dy, dz)
 
 
-@njit(nogil=True, cache=True)
-def _refine(prim, row, origins, directions, epsilon, first_vertex, normals, face_out,
-            distance_out, normal_out):  # noqa: ANN001, ANN202
-    """Row ``row``'s face, float64 distance to the face's plane and normal (as
-    :func:`lidarsim_core.kernels.raycast.refine_hits`); -1, NaN, NaN for a miss or a refined
-    distance at or below ``epsilon``."""
-    face_out[row] = -1
-    distance_out[row] = np.nan
-    normal_out[row, 0] = np.nan
-    normal_out[row, 1] = np.nan
-    normal_out[row, 2] = np.nan
-    if prim == _INVALID:
-        return
-    f = np.int64(prim)
-    distance = plane_distance(f, origins[row, 0], origins[row, 1], origins[row, 2],
-                              directions[row, 0], directions[row, 1], directions[row, 2],
-                              first_vertex, normals)
-    if distance > epsilon:
-        face_out[row] = f
-        distance_out[row] = distance
-        normal_out[row, 0] = normals[f, 0]
-        normal_out[row, 1] = normals[f, 1]
-        normal_out[row, 2] = normals[f, 2]
+@njit(cache=True)
+def _face(prim):  # noqa: ANN001, ANN202
+    """Embree's primitive ID as a face index, -1 for none."""
+    return np.int64(-1) if prim == _INVALID else np.int64(prim)
 
 
 @njit(nogil=True, cache=True)
@@ -206,8 +187,8 @@ def cast_refined(intersect, scene, width, fields, origins, directions, centre, r
         for row in range(lo, hi):
             _shifted_ray(buf, flt, 1, 0, origins, directions, row, centre, radius, epsilon)
             _intersect1(intersect, scene, address)
-            _refine(buf[17], row, origins, directions, epsilon, first_vertex, normals,
-                    face_out, distance_out, normal_out)
+            refine_row(_face(buf[17]), row, origins, directions, epsilon, first_vertex,
+                       normals, face_out, distance_out, normal_out)
         return
     valid = _aligned_words(width, max(16, 4 * width)).view(np.int32)
     for start in range(lo, hi, width):
@@ -219,5 +200,5 @@ def cast_refined(intersect, scene, width, fields, origins, directions, centre, r
             valid[lane] = -1 if lane < count else 0
         _intersect_packet(intersect, valid.ctypes.data, scene, buf.ctypes.data)
         for lane in range(count):
-            _refine(buf[17 * width + lane], start + lane, origins, directions, epsilon,
-                    first_vertex, normals, face_out, distance_out, normal_out)
+            refine_row(_face(buf[17 * width + lane]), start + lane, origins, directions,
+                       epsilon, first_vertex, normals, face_out, distance_out, normal_out)

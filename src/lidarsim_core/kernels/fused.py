@@ -19,7 +19,7 @@ Every operation is the NumPy reference's (:mod:`lidarsim_core.pipeline.cast`, th
 so the results are the same bits. The inverse normal CDF is Cephes' ``ndtri`` as SciPy
 ships it (:func:`ndtri`: the same polynomials and the C library's ``log`` and ``sqrt``); the
 tests compare it with ``scipy.special.ndtri`` on millions of uniforms. The work per pulse is
-in ``inline`` helpers (:func:`turn_ray`, :func:`matvec`), so that a loop over blocks of rays
+in ``inline`` helpers (:func:`~lidarsim_core.kernels.rotation.turn_ray`, :func:`matvec`), so that a loop over blocks of rays
 can later call Embree between the two halves without another pass over memory.
 """
 
@@ -31,6 +31,7 @@ import numpy as np
 from numba import njit
 
 from .philox import philox_block, to_unit
+from .rotation import turn_ray
 
 # Cephes ndtri (scipy/xsf include/xsf/cephes/ndtri.h): rational approximations of the
 # inverse normal CDF on |y - 1/2| <= 3/8, then on z = sqrt(-2 log y) in [2, 8) and [8, 64)
@@ -134,25 +135,6 @@ def normals(key, ray_index, draws):  # noqa: ANN001, ANN201
                 if 4 * block + j < draws:
                     out[row, 4 * block + j] = ndtri(to_unit(w[j]))
     return out
-
-
-@njit(inline="always", cache=True)
-def turn_ray(x, y, z, a1, a2):  # noqa: ANN001, ANN201
-    """A direction turned by ``a1`` about u, then ``a2`` about v (the angular error,
-    :func:`lidarsim_core.kernels.rotation.rotate_two_angles`'s arithmetic)."""
-    if abs(z) > 0.9:
-        ux, uy, uz = z, 0.0, -x
-    else:
-        ux, uy, uz = -y, x, 0.0
-    norm = math.sqrt(ux * ux + uy * uy + uz * uz)
-    ux /= norm
-    uy /= norm
-    uz /= norm
-    vx, vy, vz = y * uz - z * uy, z * ux - x * uz, x * uy - y * ux
-    c1, s1 = math.cos(a1), math.sin(a1)
-    c2, s2 = math.cos(a2), math.sin(a2)
-    cc, cs = c1 * c2, c1 * s2
-    return (cc * x + cs * ux - s1 * vx, cc * y + cs * uy - s1 * vy, cc * z + cs * uz - s1 * vz)
 
 
 @njit(inline="always", cache=True)

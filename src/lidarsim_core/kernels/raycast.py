@@ -48,27 +48,34 @@ def plane_distance(f, ox, oy, oz, dx, dy, dz, first_vertex, normals):  # noqa: A
 
 
 @njit(nogil=True, cache=True)
+def refine_row(f, row, origins, directions, epsilon, first_vertex, normals, face_out,
+               distance_out, normal_out):  # noqa: ANN001, ANN201
+    """Write ray ``row``: face ``f`` that Embree found (negative: a miss), the float64
+    distance to its plane and its normal; a miss (or a refined distance at or below
+    ``epsilon``, a grazing float32 artefact) leaves face -1 and NaN."""
+    face_out[row] = -1
+    distance_out[row] = np.nan
+    normal_out[row, 0] = np.nan
+    normal_out[row, 1] = np.nan
+    normal_out[row, 2] = np.nan
+    if f < 0:
+        return
+    distance = plane_distance(f, origins[row, 0], origins[row, 1], origins[row, 2],
+                              directions[row, 0], directions[row, 1], directions[row, 2],
+                              first_vertex, normals)
+    if distance > epsilon:
+        face_out[row] = f
+        distance_out[row] = distance
+        normal_out[row, 0] = normals[f, 0]
+        normal_out[row, 1] = normals[f, 1]
+        normal_out[row, 2] = normals[f, 2]
+
+
+@njit(nogil=True, cache=True)
 def refine_hits(face32, origins, directions, first_vertex, normals, epsilon, face_out,
                 distance_out, normal_out, offset):  # noqa: ANN001, ANN201
-    """Write rays ``offset + i``: the face Embree found, the float64 distance to its plane and
-    its normal; a miss (or a refined distance at or below ``epsilon``, a grazing float32
-    artefact) leaves face -1 and NaN."""
+    """Write rays ``offset + i`` (:func:`refine_row`) for the faces ``face32`` that Embree
+    found."""
     for i in range(face32.shape[0]):
-        row = offset + i
-        f = face32[i]
-        face_out[row] = -1
-        distance_out[row] = np.nan
-        normal_out[row, 0] = np.nan
-        normal_out[row, 1] = np.nan
-        normal_out[row, 2] = np.nan
-        if f < 0:
-            continue
-        distance = plane_distance(f, origins[row, 0], origins[row, 1], origins[row, 2],
-                                  directions[row, 0], directions[row, 1], directions[row, 2],
-                                  first_vertex, normals)
-        if distance > epsilon:
-            face_out[row] = f
-            distance_out[row] = distance
-            normal_out[row, 0] = normals[f, 0]
-            normal_out[row, 1] = normals[f, 1]
-            normal_out[row, 2] = normals[f, 2]
+        refine_row(face32[i], offset + i, origins, directions, epsilon, first_vertex, normals,
+                   face_out, distance_out, normal_out)
