@@ -1,16 +1,14 @@
 """Cores used by a whole frame on all threads, hot and after the process sat idle.
 
-Issue #22's all-thread ratios stayed below the one-thread ones because a frame's second
-piece often does not run beside the first: ``Simulation.run_frame`` of the suite's
-tumbling-rose scene uses 1.55-1.64 cores when frames follow each other, but mostly 1.00-1.10
-cores (a few frames 1.45), once the process has slept for half a second (measured on the 2-core
-development VM). A numba loop that releases the GIL for its whole run scales to 1.97 cores
-in the same process in both states, and a frame's pieces are handed to both pool threads at
-once, yet after the idle period the second piece starts only when the first has finished
-(per-piece timestamps). The pieces hold the GIL between short compiled kernels; our
-unconfirmed reading is that a pool thread woken on an idle virtual CPU loses the GIL to the
-running thread at each of those hand-offs. Lowering CPython's switch interval from 5 ms to
-0.2 ms (``sys.setswitchinterval``) helped only some frames (1.0-1.67 cores after idle).
+Issue #22's all-thread ratios stayed below the one-thread ones partly because a frame's second
+piece often did not run beside the first: ``Simulation.run_frame`` of the suite's
+tumbling-rose scene used 1.55-1.64 cores when frames followed each other, but mostly
+1.00-1.17 cores once the process had slept for half a second (the 2-core development VM).
+The cause was the guest kernel packing both woken pool threads onto one vCPU
+(``sched_vcpu_pack`` on its command line): two nogil loops handed to the pool together ran
+one after the other. Binding each pool thread to a CPU of its own
+(:mod:`lidarsim_core.base.pinning`, the default) brought the frames after idle to
+1.47-1.51 cores; ``LIDARSIM_PIN_THREADS=off`` shows the old behaviour.
 
 Run: ``python benchmarks/bench_threads_idle.py [scene] [idle seconds]``; prints, for each of
 three rounds of nine frames, the wall time (ms) and cores used of every frame.

@@ -25,12 +25,10 @@ Environment variables
 from __future__ import annotations
 
 import ctypes
-import os
 import sys
 import threading
 
-from .errors import ConfigError
-from .limits import ENVIRONMENT
+from .limits import env_choice
 
 #: ``mallopt`` parameters (glibc's ``malloc.h``).
 M_TRIM_THRESHOLD, M_MMAP_THRESHOLD = -1, -3
@@ -53,13 +51,7 @@ def malloc_mode() -> str:
     ConfigError
         If it is neither ``keep`` nor ``system``.
     """
-    raw = os.environ.get("LIDARSIM_MALLOC", "").strip()
-    if not raw:
-        return "keep"
-    if raw not in MODES:
-        raise ConfigError(f"LIDARSIM_MALLOC={raw!r} must be one of {', '.join(MODES)}",
-                          source=ENVIRONMENT, field="LIDARSIM_MALLOC")
-    return raw
+    return env_choice("LIDARSIM_MALLOC", MODES)
 
 
 def keep_freed_memory() -> bool:

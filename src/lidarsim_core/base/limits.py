@@ -159,6 +159,24 @@ def check(name: str, value: float, *, what: str = "", source: str | Path | None 
                       field=field)
 
 
+def env_choice(variable: str, choices: tuple[str, ...]) -> str:
+    """The value of the environment variable ``variable``, one of ``choices`` (the first when
+    unset or empty).
+
+    Raises
+    ------
+    ConfigError
+        If it is set to anything else, naming the variable and the choices.
+    """
+    raw = os.environ.get(variable, "").strip()
+    if not raw:
+        return choices[0]
+    if raw not in choices:
+        raise ConfigError(f"{variable}={raw!r} must be one of {', '.join(choices)}",
+                          source=ENVIRONMENT, field=variable)
+    return raw
+
+
 def threads_from_env(default: int) -> int:
     """Threads asked for by ``LIDARSIM_THREADS`` (``default`` when unset or empty).
 

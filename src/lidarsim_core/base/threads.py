@@ -11,6 +11,9 @@ Environment variables
 ``LIDARSIM_THREADS``
     Threads used by the simulation pipeline and by multi-threaded backends (default: one per
     CPU core; ``1`` runs everything on the calling thread).
+``LIDARSIM_PIN_THREADS``
+    ``auto`` (default) binds each pool thread to a CPU of its own, ``off`` does not
+    (:mod:`lidarsim_core.base.pinning`).
 """
 
 from __future__ import annotations
@@ -21,6 +24,8 @@ import threading
 from collections import deque
 from concurrent.futures import Future, ThreadPoolExecutor
 from typing import Callable, Iterable, Iterator, TypeVar
+
+from .pinning import pinning_initializer, pool_cpus
 
 T = TypeVar("T")
 
@@ -55,13 +60,16 @@ def shared_pool(threads: int, purpose: str = "cast") -> ThreadPoolExecutor:
     kept (starting threads for every call would cost as much as casting a few thousand rays).
 
     The pipeline's pieces and the backends' ray parts use different pools, so a piece waiting
-    for its ray parts never waits for a thread it holds itself.
+    for its ray parts never waits for a thread it holds itself. Each thread is bound to a CPU
+    of its own where :func:`~lidarsim_core.base.pinning.pool_cpus` says so.
     """
     with _pools_lock:
         pool = _pools.get((purpose, threads))
         if pool is None:
+            cpus = pool_cpus(threads)
             pool = _pools[(purpose, threads)] = ThreadPoolExecutor(
-                threads, thread_name_prefix=f"lidarsim-{purpose}")
+                threads, thread_name_prefix=f"lidarsim-{purpose}",
+                initializer=pinning_initializer(cpus) if cpus else None)
         return pool
 
 

@@ -28,7 +28,7 @@ from llvmlite import ir
 from numba import njit, types
 from numba.extending import intrinsic
 
-from .raycast import refine_row
+from .raycast import refined_distance, store_hit
 
 _INVALID = np.uint32(0xFFFFFFFF)
 _MASK_ALL = np.uint32(0xFFFFFFFF)
@@ -182,14 +182,7 @@ def cast_refined(intersect, scene, width, fields, origins, directions, centre, r
     (``first_vertex``, ``normals``) is recomputed from the original float64 ray; a refined
     distance at or below ``epsilon`` (a grazing float32 artefact) counts as a miss."""
     buf, flt = _rayhit_buffer(width, fields)
-    if width == 1:
-        address = buf.ctypes.data
-        for row in range(lo, hi):
-            _shifted_ray(buf, flt, 1, 0, origins, directions, row, centre, radius, epsilon)
-            _intersect1(intersect, scene, address)
-            refine_row(_face(buf[17]), row, origins, directions, epsilon, first_vertex,
-                       normals, face_out, distance_out, normal_out)
-        return
+    address = buf.ctypes.data
     valid = _aligned_words(width, max(16, 4 * width)).view(np.int32)
     for start in range(lo, hi, width):
         count = min(width, hi - start)
@@ -198,7 +191,15 @@ def cast_refined(intersect, scene, width, fields, origins, directions, centre, r
                 _shifted_ray(buf, flt, width, lane, origins, directions, start + lane, centre,
                              radius, epsilon)
             valid[lane] = -1 if lane < count else 0
-        _intersect_packet(intersect, valid.ctypes.data, scene, buf.ctypes.data)
+        if width == 1:
+            _intersect1(intersect, scene, address)
+        else:
+            _intersect_packet(intersect, valid.ctypes.data, scene, address)
         for lane in range(count):
-            refine_row(_face(buf[17 * width + lane]), start + lane, origins, directions,
-                       epsilon, first_vertex, normals, face_out, distance_out, normal_out)
+            row, f, distance = start + lane, _face(buf[17 * width + lane]), np.nan
+            if f >= 0:
+                distance = refined_distance(f, origins[row, 0], origins[row, 1],
+                                            origins[row, 2], directions[row, 0],
+                                            directions[row, 1], directions[row, 2], epsilon,
+                                            first_vertex, normals)
+            store_hit(row, f, distance, normals, face_out, distance_out, normal_out)

@@ -41,6 +41,7 @@ import numpy as np
 
 from ..base.allocator import keep_freed_memory
 from ..base.errors import ConfigError
+from ..base.pinning import pin_mode
 from ..base.signals import interrupt_behind
 from ..base.threads import ordered_map, piece_size, split_range, worker_threads
 from ..instrument.beam import SubRays, sub_rays_for
@@ -106,6 +107,7 @@ class Simulation:
     def __init__(self, scenario: Scenario, registry: Registry | None = None) -> None:
         registry = registry or get_registry()
         keep_freed_memory()  # frames reuse the last one's pages (lidarsim_core.base.allocator)
+        pin_mode()  # a mistyped LIDARSIM_PIN_THREADS is refused before any work
         src = scenario.source
         sheet = datasheet_for(scenario, registry)
         pattern = pattern_for(sheet, scenario.sensor.pattern_options, source=src,
