@@ -8,7 +8,7 @@ The cause was the guest kernel packing both woken pool threads onto one vCPU
 (``sched_vcpu_pack`` on its command line): two nogil loops handed to the pool together ran
 one after the other. Binding each pool thread to a CPU of its own
 (:mod:`lidarsim_core.base.pinning`, the default) brought the frames after idle to
-1.47-1.51 cores; ``LIDARSIM_PIN_THREADS=off`` shows the old behaviour.
+1.43-1.51 cores (34 of 36 frames); ``LIDARSIM_PIN_THREADS=off`` shows the old behaviour.
 
 Run: ``python benchmarks/bench_threads_idle.py [scene] [idle seconds]``; prints, for each of
 three rounds of nine frames, the wall time (ms) and cores used of every frame.

@@ -4,10 +4,11 @@ A frame's pieces are handed to the pool's threads at once, but a scheduler that 
 runnable threads onto few CPUs may queue both behind each other on one CPU while the other
 sleeps: measured on the two-vCPU development VM (a Firecracker guest whose kernel packs
 threads onto vCPUs), two nogil loops of 1.5 ms submitted together after 0.5 s idle ran one
-after the other (the second started 1.5 ms after the first, 1.0 core), and the tumbling rose
-scene's frames used 1.00-1.17 cores after idle. With each pool thread bound to its own CPU the
-second loop started 0.3 ms after the first (the time to wake a halted vCPU) and the frames used
-1.47-1.51 cores; frames that follow each other were not slowed (3.1 ms either way).
+after the other (the second started 1.5 ms after the first, 1.0 core), and the tumbling
+rose scene's frames used mostly 1.00-1.17 cores after idle. With each pool thread bound to its
+own CPU the second loop started 0.3 ms after the first (the time to wake a halted vCPU), and
+34 of 36 frames after idle used 1.43-1.51 cores; frames that follow each other were not
+slowed (2.9-3.5 ms bound, 2.9-3.8 unbound).
 
 Threads are bound only when the pool has no more threads than the CPUs the process may use
 (``os.sched_getaffinity``): thread *i* to the *i*-th of them. A pool of more threads, or a

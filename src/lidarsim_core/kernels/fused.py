@@ -75,15 +75,7 @@ def ndtri(y0):  # noqa: ANN001, ANN201
         y = y - 0.5
         y2 = y * y
         p = ((((_P0[0] * y2 + _P0[1]) * y2 + _P0[2]) * y2 + _P0[3]) * y2 + _P0[4])
-        q = y2 + _Q0[0]
-        q = q * y2 + _Q0[1]
-        q = q * y2 + _Q0[2]
-        q = q * y2 + _Q0[3]
-        q = q * y2 + _Q0[4]
-        q = q * y2 + _Q0[5]
-        q = q * y2 + _Q0[6]
-        q = q * y2 + _Q0[7]
-        x = y + y * (y2 * p / q)
+        x = y + y * (y2 * p / _p1evl8(y2, _Q0))
         return x * _SQRT2PI
     x = math.sqrt(-2.0 * math.log(y))
     x0 = x - math.log(x) / x

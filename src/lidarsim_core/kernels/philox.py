@@ -43,14 +43,20 @@ def _round(c0, c1, c2, c3, k0, k1):  # noqa: ANN001, ANN202
 
 
 @njit(inline="always", cache=True)
-def philox_block(counter, k0, k1):  # noqa: ANN001, ANN201
-    """The four words of Philox-4×64-10 for counter ``(counter, 0, 0, 0)`` and key (k0, k1)."""
-    c0, c1, c2, c3 = _round(counter, _ZERO, _ZERO, _ZERO, k0, k1)
+def philox_counter(c0, c1, c2, k0, k1):  # noqa: ANN001, ANN201
+    """The four words of Philox-4×64-10 for counter ``(c0, c1, c2, 0)`` and key (k0, k1)."""
+    v0, v1, v2, v3 = _round(c0, c1, c2, _ZERO, k0, k1)
     for _ in range(9):
         k0 = k0 + _W0
         k1 = k1 + _W1
-        c0, c1, c2, c3 = _round(c0, c1, c2, c3, k0, k1)
-    return c0, c1, c2, c3
+        v0, v1, v2, v3 = _round(v0, v1, v2, v3, k0, k1)
+    return v0, v1, v2, v3
+
+
+@njit(inline="always", cache=True)
+def philox_block(counter, k0, k1):  # noqa: ANN001, ANN201
+    """The four words of Philox-4×64-10 for counter ``(counter, 0, 0, 0)`` and key (k0, k1)."""
+    return philox_counter(counter, _ZERO, _ZERO, k0, k1)
 
 
 @njit(inline="always", cache=True)
