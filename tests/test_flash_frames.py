@@ -39,3 +39,29 @@ def test_flashes_per_frame_merges_on_request():
         sensor={"datasheet": "ball-vns-flash",
                 "pattern_options": {**OPTIONS, "flashes_per_frame": 3}})
     assert Simulation(scen).frame_info(0).rays_emitted == 3 * PIXELS
+
+
+def test_slot_azimuth_and_elevation_are_those_of_the_directions(monkeypatch):
+    """Fixed-slot patterns take the record's azimuth and elevation from a per-slot table
+    (``CycleTimedPattern.nominal_az_el``): the same bits as computing them from the rays'
+    directions, on the fast path and on the general one (noise chain with detection), over
+    several flashes, whose rays wrap around the slots."""
+    from lidarsim_core.patterns.base import ScanPattern
+    from lidarsim_core.patterns.timing import CycleTimedPattern
+
+    near = [{"name": "t", "mesh": {"model": "envisat", "options": {"detail": "coarse"}},
+             "pose": {"position_m": [15, 0, 0]}}]
+    scenarios = [_scenario(duration_s=0.2).with_updates(noise=None, targets=near),
+                 _scenario(duration_s=0.2).with_updates(
+                     targets=near, noise=[{"name": "angular"}, {"name": "outliers"}],
+                     sensor={"datasheet": "ball-vns-flash", "pattern_options":
+                             {**OPTIONS, "flashes_per_frame": 3}})]
+    assert [Simulation(s).fused is None for s in scenarios] == [False, True]
+    for scenario in scenarios:
+        fast = Simulation(scenario).run_frame(0)
+        monkeypatch.setattr(CycleTimedPattern, "nominal_az_el", ScanPattern.nominal_az_el)
+        direct = Simulation(scenario).run_frame(0)
+        monkeypatch.undo()
+        assert len(fast) > 100
+        for column in ("azimuth", "elevation"):
+            assert fast[column].tobytes() == direct[column].tobytes()

@@ -101,31 +101,34 @@ def test_every_trajectory_gives_each_time_the_bits_it_gives_alone(name: str) -> 
         assert many.rotation.as_quat()[i:i + 2].tobytes() == two.rotation.as_quat().tobytes()
 
 
-def test_dataset_frames_take_their_metadata_from_a_block(tmp_path, monkeypatch) -> None:
-    """A dataset's frame jobs compute their metadata a block ahead; each frame still gets
-    exactly its own metadata, once, and frames asked out of order or twice are right too."""
-    from lidarsim_core.dataset import frames as frames_module
+def test_frames_take_their_metadata_from_a_block(tmp_path, monkeypatch) -> None:
+    """``Simulation.frame_ahead`` (dataset frame jobs, ``run_frame``) looks the poses up a
+    block ahead; each frame still gets exactly its own metadata, frames asked out of order or
+    twice are right too, and a frame's metadata is its own (not shared with the block)."""
     from lidarsim_core.dataset.frames import FrameJob, simulate_frame_job
+    from lidarsim_core.pipeline import frameinfo, simulation
 
-    monkeypatch.setattr(frames_module, "INFO_BLOCK", 4)
-    monkeypatch.setattr(frames_module, "_infos", type(frames_module._infos)())
+    monkeypatch.setattr(simulation, "FRAME_BLOCK", 4)
     sim = _sequence("tumbling-rose", 10)
     scenario_json = sim.scenario.model_dump_json()
     calls = []
-    real = Simulation.frame_infos
+    real = frameinfo.pose_records
 
-    def counted(self, frames):
-        if self is not sim:  # the jobs' own simulation
-            calls.append(list(frames))
-        return real(self, frames)
+    def counted(ctx, times, poses=None):
+        if ctx is not sim.context:  # the jobs' own simulation
+            calls.append(len(times) // 2)
+        return real(ctx, times, poses)
 
-    monkeypatch.setattr(Simulation, "frame_infos", counted)
+    monkeypatch.setattr(simulation, "pose_records", counted)
     order = [0, 1, 2, 3, 4, 9, 5, 5, 7]
     for frame in order:
         job = FrameJob("s", frame, str(tmp_path / f"{frame}.ply"), scenario_json, None, "ply")
         spool, info = simulate_frame_job(job)
         spool.close()
         assert info.to_dict() == sim.frame_info(frame).to_dict()
-    # the jobs' simulation (not ``sim``): blocks of 4 up to the last frame; the second 5 is
-    # computed again, and 7 comes from the newer block
-    assert calls == [[0, 1, 2, 3], [4, 5, 6, 7], [9], [5, 6, 7, 8]]
+    # the jobs' simulation (not ``sim``): blocks of 4 from frames 0, 4, 9 (the last frame)
+    # and 5; the second 5 and the 7 come from the block of 5
+    assert calls == [4, 4, 1, 4]
+    first = sim.run_frame(0).frame
+    first.sensor_pose_start["translation_m"][0] = 1e9  # a user's edit stays in its cloud
+    assert sim.run_frame(0).frame.to_dict() == sim.frame_info(0).to_dict()

@@ -221,7 +221,11 @@ def test_backends_agree_with_clipping_on_convex_polyhedra(backend_name, seed, n_
     tol = max(backend.distance_rtol, backend.edge_tolerance_rel, 1e-9) * length * 100
     # a backend's declared precision cannot resolve an object much smaller than its tolerance
     assume(tol < 0.01 * scale)
-    clear = margin > tol
+    # the contract ignores hits closer than epsilon_m (docs/backends.md): a crossing about
+    # that close to the origin is left out, as one near an edge is
+    with np.errstate(invalid="ignore"):
+        near = ref < backend.options.epsilon_m + tol
+    clear = (margin > tol) & ~near
     assert clear.sum() > 0.5 * len(clear)
     np.testing.assert_array_equal(hits.hit[clear], ~np.isnan(ref[clear]))
     both = clear & hits.hit

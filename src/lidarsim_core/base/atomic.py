@@ -43,7 +43,7 @@ def atomic_output(path: str | Path, *, overwrite: bool = True) -> Iterator[IO[by
     tmp: str | None = None
     try:
         fd, tmp = _open_part(path, os.fspath(parent))
-        deferred = getattr(_local, "deferred", None)
+        deferred = deferred_paths()
         with os.fdopen(fd, "wb") as stream:
             yield stream
             stream.flush()
@@ -105,7 +105,7 @@ def write_bytes_atomic(path: str | Path, data: bytes | bytearray | memoryview, *
     tmp: str | None = None
     try:
         fd, tmp = _open_part(path, parent)
-        deferred = getattr(_local, "deferred", None)
+        deferred = deferred_paths()
         try:
             view = memoryview(data).cast("B")
             while view:
@@ -131,13 +131,13 @@ def _open_part(path: Path, parent: str) -> tuple[int, str]:
     leftover) is never ours and is left alone, another is drawn; the mode is reduced by the
     umask as for any new file. Failures are the one-line :class:`OutputError` naming
     ``path``."""
-    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0)
+    flags = PART_FLAGS
     attempts = 8
     try:
         while True:
-            tmp = os.path.join(parent, f".{path.name}.{_token()}.part")
+            tmp = part_name(path, parent)
             try:
-                return os.open(tmp, flags, 0o666), tmp
+                return os.open(tmp, flags, PART_MODE), tmp
             except FileExistsError:
                 attempts -= 1
                 if not attempts:
@@ -150,6 +150,23 @@ def _open_part(path: Path, parent: str) -> tuple[int, str]:
                           source=path) from None
     except OSError as exc:
         raise OutputError(f"cannot write here: {exc.strerror}", source=path) from None
+
+
+#: How a temporary file is opened (it must be new: ``O_EXCL``), and its mode before the umask.
+PART_FLAGS = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0)
+PART_MODE = 0o666
+
+
+def part_name(path: Path, parent: str) -> str:
+    """A new name for a hidden temporary file beside ``path`` in ``parent`` (``""``: the
+    current directory), as :func:`write_bytes_atomic` draws them: ``.NAME.RANDOM.part``."""
+    return os.path.join(parent, f".{path.name}.{_token()}.part")
+
+
+def deferred_paths() -> list[Path] | None:
+    """The list this thread's :func:`deferred_sync` collects finished files in, or ``None``
+    outside one (each file is then synced before its rename)."""
+    return getattr(_local, "deferred", None)
 
 
 def _discard(tmp: str | None) -> None:
@@ -233,8 +250,7 @@ def _group_member(path: Path, tmp: Path, overwrite: bool, temps: list[tuple[Path
         raise OutputError("output file exists (use --overwrite to replace it)", source=path)
     check_replaceable(path)
     try:
-        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, "O_BINARY", 0),
-                     0o666)
+        fd = os.open(tmp, PART_FLAGS, PART_MODE)
     except OSError as exc:
         raise OutputError(f"cannot write here: {describe_os_error(exc)}", source=path) from None
     temps.append((Path(path), tmp))

@@ -415,7 +415,9 @@ def bench_dataset(*, frames: int = 200, rounds: int = 3) -> dict[str, Any]:
     frames at 10 Hz): simulated in memory (``Simulation.run_frame`` of every frame) and
     written by a serial ``lidarsim dataset`` run (binary PLY files, checksums, sidecars,
     manifest; a fresh directory each round); best of ``rounds`` interleaved runs, and the
-    least CPU time (all threads, user and system) per frame of each.
+    least CPU time (all threads, user and system) per frame of each, the dataset's writer
+    process apart (``writer_process``, :mod:`lidarsim_core.dataset.writer_process`; in 10 ms
+    ticks).
 
     The rounds' directories are removed after the last round, not between rounds: removing
     them is no part of writing a dataset, and on a file system that checks every new file
@@ -425,6 +427,7 @@ def bench_dataset(*, frames: int = 200, rounds: int = 3) -> dict[str, Any]:
     import shutil
 
     from ..dataset.generate import generate_dataset
+    from ..dataset.writer_process import writer_process
     from ..pipeline.simulation import Simulation
     from ..scenario.load import scenario_from_dict
 
@@ -434,7 +437,7 @@ def bench_dataset(*, frames: int = 200, rounds: int = 3) -> dict[str, Any]:
     sim = Simulation(scenario)
     folder = Path(tempfile.mkdtemp(prefix="lidarsim-bench-dataset-"))
     runs = iter(range(10 ** 6))
-    cpu: dict[str, list[float]] = {"in_memory": [], "dataset": []}
+    cpu: dict[str, list[float]] = {"in_memory": [], "dataset": [], "writer_process": []}
 
     def in_memory() -> None:
         start = time.process_time()
@@ -443,9 +446,14 @@ def bench_dataset(*, frames: int = 200, rounds: int = 3) -> dict[str, Any]:
         cpu["in_memory"].append(time.process_time() - start)
 
     def dataset() -> None:
-        start = time.process_time()
+        child = writer_process(start=False)
+        start, child_start = time.process_time(), child and child.cpu_seconds()
         generate_dataset(scenario, folder / f"run{next(runs)}")
         cpu["dataset"].append(time.process_time() - start)
+        child = writer_process(start=False)
+        child_end = child and child.cpu_seconds()
+        if child_end is not None:  # the writer process's time (started in the first round)
+            cpu["writer_process"].append(child_end - (child_start or 0.0))
 
     try:
         best, cores = interleaved_best({"in_memory": in_memory, "dataset": dataset}, rounds)
@@ -456,7 +464,7 @@ def bench_dataset(*, frames: int = 200, rounds: int = 3) -> dict[str, Any]:
               "dataset_frames_per_s": frames / best["dataset"],
               "cores_used": {key: round(value, 2) for key, value in cores.items()},
               "cpu_ms_per_frame": {key: round(1e3 * min(values[1:]) / frames, 3)
-                                   for key, values in cpu.items()}}
+                                   for key, values in cpu.items() if values[1:]}}
     result["dataset_over_in_memory"] = \
         result["dataset_frames_per_s"] / result["in_memory_frames_per_s"]
     return result

@@ -141,8 +141,11 @@ def _print_suite(console: Any, suite: dict[str, Any], threads: int) -> None:
                       f"{data['dataset_over_in_memory']:.2f}, goal 0.8).")
         cpu_ms = data.get("cpu_ms_per_frame")
         if cpu_ms:
+            child = cpu_ms.get("writer_process")
             console.print(f"  CPU per frame: in memory {cpu_ms['in_memory']:.2f} ms, dataset "
-                          f"{cpu_ms['dataset']:.2f} ms.")
+                          f"{cpu_ms['dataset']:.2f} ms"
+                          + ("." if child is None else f" + {child:.2f} ms in the writer "
+                             "process."))
     start = suite.get("startup")
     if start:
         console.print(f"A new process, from import to the demo's first frame: "

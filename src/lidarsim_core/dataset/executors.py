@@ -8,6 +8,8 @@ number of frames.
 
 from __future__ import annotations
 
+import functools
+import json
 import logging
 import queue
 import threading
@@ -17,7 +19,9 @@ from typing import Any, Callable, Iterable, Iterator
 from ..base.atomic import deferred_sync, sync_files
 from ..base.errors import ConfigError
 from ..base.optional import require
-from .frames import FrameJob, run_frame_job, simulate_frame_job, write_frame_job
+from ..plugins.resolve import exporter_named
+from .frames import FrameJob, frame_result, run_frame_job, simulate_frame_job, write_frame_job
+from .writer_process import writer_process
 
 OnResult = Callable[[dict[str, Any]], None]
 OnDurable = Callable[[list[dict[str, Any]]], None]
@@ -88,7 +92,9 @@ SYNC_QUEUE = 2
 
 
 class _FrameWriter:
-    """The writer threads of :func:`run_serial`; results come back in submission order."""
+    """The writer threads of :func:`run_serial`, and with ``on_durable`` the writer process
+    (:mod:`~lidarsim_core.dataset.writer_process`) once it is ready; results come back in
+    submission order."""
 
     def __init__(self, on_durable: OnDurable | None = None) -> None:
         self._on_durable = on_durable
@@ -110,6 +116,35 @@ class _FrameWriter:
             thread.start()
         if on_durable is not None:
             self._syncer.start()
+        # frames sent to the writer process: submission number -> (job, info)
+        self._sent: dict[int, tuple[FrameJob, Any]] = {}
+        self._process = writer_process() if on_durable is not None else None
+        if self._process is not None and not self._process.claim(self._written):
+            self._process = None  # another run has it: threads only
+
+    def _written(self, number: int, record: dict[str, Any] | None, paths: list[Any],
+                 error: BaseException | None) -> None:
+        """A frame the writer process wrote (called on its receiving thread)."""
+        with self._lock:
+            job, info = self._sent.pop(number)
+            if error is not None:
+                self._error = self._error or error
+                return
+            assert record is not None
+            self._finished[number] = (frame_result(job, info, record), paths)
+
+    def _to_process(self, job: FrameJob, spool: Any) -> Any:
+        """The writer process if it takes this frame now (ready, a built-in exporter, the
+        records in memory), else ``None``."""
+        process = self._process
+        if process is None or not process.ready.is_set() or spool.records() is None or \
+                not _built_in(job.exporter, job.exporter_options):
+            return None
+        while not process.wait_room(0.1):
+            self._raise()
+            if process.broken is not None:
+                raise process.broken
+        return process
 
     def _sync_run(self) -> None:
         assert self._on_durable is not None
@@ -160,7 +195,16 @@ class _FrameWriter:
     def put(self, job: FrameJob, spool: Any, info: Any) -> None:
         """Queue a simulated frame (after re-raising an error of a writer)."""
         self._raise()
-        self._put(self._queue, (self._submitted, job, spool, info))
+        process = self._to_process(job, spool)
+        if process is not None:
+            with self._lock:
+                self._sent[self._submitted] = (job, info)
+            records = spool.records()
+            spool.close()  # the records stay alive until they are sent
+            process.send(self._submitted, job.path, job.exporter, job.exporter_options,
+                         info.to_dict(), records)
+        else:
+            self._put(self._queue, (self._submitted, job, spool, info))
         self._submitted += 1
 
     def results(self) -> Iterator[dict[str, Any]]:
@@ -204,6 +248,8 @@ class _FrameWriter:
         while self._alive():
             for thread in self._threads:
                 thread.join(0.1)
+        if self._process is not None:
+            self._process.wait_idle()
         self._raise()
 
     def finish_sync(self) -> None:
@@ -220,6 +266,9 @@ class _FrameWriter:
     def abandon(self) -> None:
         """Stop after the frames being written (no-op once finished); frames written but not
         yet synced stay unsynced (not passed to ``on_durable``)."""
+        if self._process is not None:  # the frames sent are written (or fail), then it is free
+            self._process.release()
+            self._process = None
         if self._syncer.is_alive():
             self._stop.set()
             while self._syncer.is_alive():
@@ -242,6 +291,18 @@ class _FrameWriter:
                 break
             if item is not None:
                 item[2].close()
+
+
+@functools.lru_cache(maxsize=16)
+def _built_in_options(name: str, options: str) -> bool:
+    exporter = exporter_named(name, json.loads(options))
+    return type(exporter).__module__.startswith("lidarsim_core.")
+
+
+def _built_in(name: str, options: dict[str, Any]) -> bool:
+    """Whether the exporter ``name`` is one of lidarsim's (the writer process resolves it
+    by name; a plugin's exporter is written on a thread, where it was registered)."""
+    return _built_in_options(name, json.dumps(options, sort_keys=True))
 
 
 def _dask() -> Any:

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import hashlib
 import os
-import threading
 from collections import OrderedDict
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -25,12 +24,8 @@ CACHE_SIZE = 4
 
 _simulations: "OrderedDict[str, Any]" = OrderedDict()
 _stats = {"simulations_built": 0, "frames": 0}
-#: Frames whose metadata are computed together, ahead of their simulation: the trajectories
-#: are evaluated once per block (:meth:`~lidarsim_core.pipeline.simulation.Simulation.frame_infos`, the
-#: same bits as one frame at a time). Each is handed out once, to its frame's job.
-INFO_BLOCK = 64
-_infos: "OrderedDict[tuple[str, int], tuple[Any, bool]]" = OrderedDict()
-_infos_lock = threading.Lock()
+#: Directories this process made (or found) for frame files.
+_parents: set[str] = set()
 
 
 @dataclass(frozen=True)
@@ -92,38 +87,14 @@ def _simulation(job: FrameJob) -> Any:
     return sim
 
 
-def _frame_info(job: FrameJob, sim: Any) -> tuple[Any, bool]:
-    """``sim.frame_info(job.frame)``, from a block of frames computed ahead when it is there,
-    and whether the block found the sensor clear of every target in that frame
-    (:func:`~lidarsim_core.pipeline.inside.clear_of_targets`: the frame's own check is then
-    skipped; the in-memory frames keep theirs)."""
-    from ..pipeline.inside import clear_of_targets  # the pipeline loads with the simulation
-
-    key = (job.cache_key, job.frame)
-    with _infos_lock:
-        ahead = _infos.pop(key, None)
-    if ahead is not None:
-        return ahead
-    last = max(job.frame + 1, min(sim.scenario.scan.frames, job.frame + INFO_BLOCK))
-    block = range(job.frame, last)
-    infos = sim.frame_infos(block)
-    clear = clear_of_targets(sim.context, block)
-    with _infos_lock:
-        for later, later_clear in zip(infos[1:], clear[1:]):
-            _infos[(job.cache_key, later.frame)] = (later, bool(later_clear))
-        while len(_infos) > 4 * INFO_BLOCK:  # frames other workers made, or never asked for
-            _infos.popitem(last=False)
-    return infos[0], bool(clear[0])
-
-
 def simulate_frame_job(job: FrameJob) -> tuple[PointSpool, Any]:
     """Simulate ``job.frame`` into a :class:`~lidarsim_core.io.points.PointSpool` (the caller
     closes it, usually through :func:`write_frame_job`); returns it and the frame's info."""
     sim = _simulation(job)
-    info, clear = _frame_info(job, sim)
+    info, clear = sim.frame_ahead(job.frame)  # from a block of frames looked up at once
     spool = PointSpool(info, memory_limit=job.spool_memory)
     try:
-        spool.extend(sim.iter_chunks(job.frame, outside_checked=clear))
+        spool.extend(sim.iter_pieces(job.frame, outside_checked=clear))
     except BaseException:
         spool.close()
         raise
@@ -141,12 +112,30 @@ def write_frame_job(job: FrameJob, spool: PointSpool, info: Any) -> dict[str, An
     with spool:
         exporter = exporter_named(job.exporter, job.exporter_options)
         path = Path(job.path)
-        path.parent.mkdir(parents=True, exist_ok=True)
+        make_parent(path)
         record = write_points_file(spool, path, exporter=exporter)
+    return frame_result(job, info, record)
+
+
+def frame_result(job: FrameJob, info: Any, record: dict[str, Any]) -> dict[str, Any]:
+    """What a frame job returns once its file is written (``record``: the file's sidecar
+    record, or its ``file``, ``points``, ``bytes`` and ``sha256``)."""
     _stats["frames"] += 1
     return {"sequence": job.sequence, "frame": job.frame, "file": record["file"],
             "points": record["points"], "rays": info.rays_emitted, "bytes": record["bytes"],
             "sha256": record["sha256"]}
+
+
+def make_parent(path: Path) -> None:
+    """Create ``path``'s directory unless this process made it already (a sequence's
+    frames share one: a ``mkdir`` a frame would be one more system call on the writer
+    thread, see :mod:`lidarsim_core.io.filegroup`)."""
+    parent = os.fspath(path.parent)
+    if parent not in _parents:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        if len(_parents) >= CACHE_SIZE * 64:
+            _parents.clear()
+        _parents.add(parent)
 
 
 def run_frame_job(job: FrameJob) -> dict[str, Any]:

@@ -54,6 +54,7 @@ from .checks import (
 from .config import DatasetPlan, SequencePlan, load_plan, scenario_variant
 from .durable import DurableFrames
 from .executors import run_dask, run_serial
+from .writer_process import writer_process
 from .frames import FrameJob
 from .identity import (
     dataset_identity,
@@ -425,6 +426,8 @@ def _run(plan: DatasetPlan, root: Path, sequences: list[SequenceRun], exporter: 
     registry = get_registry()
     bag = isinstance(exporter, BagFormat)
     sharded = isinstance(exporter, ShardFormat)
+    if workers is None and scheduler is None and not (bag or sharded):
+        writer_process()  # its imports overlap the set-up and the first frame's meshes
     for seq in sequences:
         _prepare_sequence(seq, suffix)
     exp_id = exporter.identity() if bag or sharded else exporter_identity(exporter, registry)

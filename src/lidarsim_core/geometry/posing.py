@@ -32,6 +32,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from .. import kernels
+from ..base.arrays import take_rows
 
 if TYPE_CHECKING:
     from .poses import Poses
@@ -72,8 +73,9 @@ class PoseMatrices:
         """The poses at ``rows`` (a single shared pose stays as it is)."""
         if len(self) > 1 and len(rows) == 0:  # no ray left: no pose, shared or not
             return PoseMatrices(self.position[:0], self.matrix[:0])
-        return PoseMatrices(self.position if len(self.position) == 1 else self.position[rows],
-                            self.matrix if len(self.matrix) == 1 else self.matrix[rows])
+        return PoseMatrices(
+            self.position if len(self.position) == 1 else take_rows(self.position, rows),
+            self.matrix if len(self.matrix) == 1 else take_rows(self.matrix, rows))
 
     def to_poses(self) -> "Poses":
         """As a :class:`~lidarsim_core.geometry.poses.Poses` (SciPy rotations)."""

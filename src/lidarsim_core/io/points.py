@@ -145,11 +145,21 @@ class PointSpool(PointSource):
         self.memory_limit = memory_limit
         self.tmp_dir = tmp_dir
         self._dtype: np.dtype | None = None
-        self._parts: list[np.ndarray] = []
+        self._parts: list[dict[str, np.ndarray]] = []
         self._held = 0
         self._count = 0
         self._file: IO[bytes] | None = None
         self._joined: np.ndarray | None = None
+
+    @classmethod
+    def from_records(cls, frame: FrameInfo, records: np.ndarray) -> "PointSpool":
+        """A spool holding ``records`` (a structured array of a frame's points, as
+        :meth:`records` returns them) as they are, without a copy."""
+        spool = cls(frame, memory_limit=max(records.nbytes, DEFAULT_SPOOL_MEMORY))
+        if len(records):
+            spool.append({name: records[name] for name in records.dtype.names or ()})
+            spool._joined = records  # what the parts make, already made
+        return spool
 
     # ---- collecting ---------------------------------------------------------------------
     def append(self, columns: dict[str, np.ndarray]) -> None:
@@ -160,24 +170,39 @@ class PointSpool(PointSource):
         elif list(fields) != list(self._dtype.names or ()):
             raise ValueError("every chunk must have the same columns")
         n = len(columns[next(iter(fields))]) if fields else 0
+        if any(len(columns[name]) != n for name in fields):
+            raise ValueError("every column of a chunk must have the same length")
         if n == 0:
             return
-        records = np.empty(n, dtype=self._dtype)
-        for name in fields:
-            records[name] = columns[name]
         self._joined = None
         self._count += n
-        if self._file is None and self._held + records.nbytes <= self.memory_limit:
-            self._parts.append(records)
-            self._held += records.nbytes
+        size = n * self._dtype.itemsize
+        if self._file is None and self._held + size <= self.memory_limit:
+            # the chunk's arrays as they are: made into records when they are read, by the
+            # thread that writes them (a dataset's writer, not the simulating thread)
+            self._parts.append({name: columns[name] for name in fields})
+            self._held += size
             return
         if self._file is None:
             self._file = tempfile.TemporaryFile(prefix="lidarsim-spool-", dir=self.tmp_dir)
             for part in self._parts:
-                self._file.write(part.tobytes())
+                self._file.write(self._records([part]).tobytes())
             self._parts, self._held = [], 0
         self._file.seek(0, 2)
-        self._file.write(records.tobytes())
+        self._file.write(self._records([columns]).tobytes())
+
+    def _records(self, parts: list[dict[str, np.ndarray]]) -> np.ndarray:
+        """One structured array of ``parts``' columns (each converted to the spool's
+        dtype as an assignment converts it)."""
+        assert self._dtype is not None
+        records = np.empty(sum(len(next(iter(p.values()))) for p in parts), dtype=self._dtype)
+        start = 0
+        for part in parts:
+            n = len(next(iter(part.values())))
+            for name, values in part.items():
+                records[name][start:start + n] = values
+            start += n
+        return records
 
     def extend(self, chunks: Iterable[dict[str, np.ndarray]]) -> "PointSpool":
         """Append every chunk of ``chunks``; returns ``self``."""
@@ -208,11 +233,10 @@ class PointSpool(PointSource):
         if self._count == 0 or self._dtype is None:
             return
         if self._file is None:
-            if self._joined is None:
-                self._joined = np.concatenate(self._parts) if len(self._parts) > 1 \
-                    else self._parts[0]
+            records = self.records()
+            assert records is not None
             for start in range(0, self._count, size):
-                block = self._joined[start:start + size]
+                block = records[start:start + size]
                 yield {name: np.ascontiguousarray(block[name]) for name in names}
             return
         itemsize = self._dtype.itemsize
@@ -226,8 +250,7 @@ class PointSpool(PointSource):
         if self._file is not None or self._dtype is None:
             return None
         if self._joined is None:
-            self._joined = np.concatenate(self._parts) if len(self._parts) > 1 \
-                else self._parts[0] if self._parts else np.empty(0, dtype=self._dtype)
+            self._joined = self._records(self._parts)
         return self._joined
 
     def close(self) -> None:

@@ -74,11 +74,22 @@ def _column_names(fields: tuple[tuple[str, "np.dtype"], ...]) -> tuple[tuple[str
 def sidecar_text(record: dict[str, Any]) -> str:
     """The sidecar file's text: ``json.dumps(record, indent=1, sort_keys=True)`` and a line
     end (:func:`~lidarsim_core.base.jsontext.indented_json`, the same text faster)."""
+    # the parts that are the same in every frame of a sequence (the columns; the part,
+    # target and noise names) as tuples: each is encoded once (the same text)
     columns = record.get("columns")
     if isinstance(columns, list) and all(isinstance(c, list) for c in columns):
-        # the same in every frame: as a tuple it is encoded once (the same text)
         record = {**record, "columns": tuple(tuple(c) for c in columns)}
+    frame = record.get("frame")
+    if isinstance(frame, dict):
+        record = {**record, "frame": {key: _names(value) for key, value in frame.items()}}
     return indented_json(record) + "\n"
+
+
+def _names(value: Any) -> Any:
+    """``value`` as a tuple if it is a list of strings, else as it is."""
+    if type(value) is list and all(type(item) is str for item in value):
+        return tuple(value)
+    return value
 
 
 def write_sidecar(path: str | Path, record: dict[str, Any]) -> Path:

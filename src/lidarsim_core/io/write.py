@@ -4,7 +4,8 @@ JSON with the frame metadata and the file's checksum.
 A frame whose points are in memory (up to :data:`BUFFER_LIMIT` bytes of records) is encoded
 into an in-memory buffer when its exporter allows it (:attr:`Exporter.memory_stream
 <lidarsim_core.io.base.Exporter.memory_stream>`): its checksum and size come from those bytes
-and the file is written with one call (:func:`~lidarsim_core.base.atomic.write_bytes_atomic`),
+and the file and its sidecar are written together
+(:func:`~lidarsim_core.io.filegroup.write_files_atomic`: one compiled call where it can be),
 instead of streaming to the file and reading it back to hash it. The bytes are the same
 either way.
 """
@@ -16,11 +17,12 @@ import io
 from pathlib import Path
 from typing import Any
 
-from ..base.atomic import atomic_output, write_bytes_atomic
+from ..base.atomic import atomic_output
 from ..base.errors import UserInputError
 from .base import Exporter
 from .points import PointSource
-from .sidecar import sidecar_record, write_sidecar
+from .filegroup import write_files_atomic
+from .sidecar import sidecar_path, sidecar_record, sidecar_text, write_sidecar
 
 #: Largest frame (bytes of its point records) encoded in memory before it is written; larger
 #: ones stream to their file chunk by chunk, as before.
@@ -70,18 +72,22 @@ def write_points_file(points: PointSource, path: str | Path, exporter: Exporter,
     dict
         The sidecar record (file name, exporter, point count, columns, size, SHA-256, frame).
     """
-    if _buffered(points, exporter):
-        data = encode_points(points, exporter, path)
-        try:
-            write_bytes_atomic(path, data, overwrite=overwrite)
-            record = sidecar_record(path, points, exporter, size=len(data),
-                                    sha256=hashlib.sha256(data).hexdigest())
-        finally:
-            data.release()
-    else:
+    if not _buffered(points, exporter):
         with atomic_output(path, overwrite=overwrite) as stream:
             exporter.write_points(points, stream)
         record = sidecar_record(path, points, exporter)
-    if sidecar:
-        write_sidecar(path, record)
+        if sidecar:
+            write_sidecar(path, record)
+        return record
+    data = encode_points(points, exporter, path)
+    try:
+        record = sidecar_record(path, points, exporter, size=len(data),
+                                sha256=hashlib.sha256(data).hexdigest())
+        files = [(path, data)]
+        if sidecar:
+            files.append((sidecar_path(path), sidecar_text(record).encode("utf-8")))
+        # in one compiled call where it can be (io.filegroup): the file, then its sidecar
+        write_files_atomic(files, overwrite=(overwrite, True)[:len(files)])
+    finally:
+        data.release()
     return record

@@ -14,6 +14,7 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
+from ..base.arrays import take_rows
 from ..base.components import Component
 from ..base.errors import UserInputError
 from ..scenario.datasheet import SensorDatasheet
@@ -50,7 +51,8 @@ class RayBatch:
 
     def take(self, rows: np.ndarray) -> "RayBatch":
         """The rays at ``rows`` (indices into this batch)."""
-        return RayBatch(self.index[rows], self.t[rows], self.direction[rows], self.channel[rows],
+        return RayBatch(take_rows(self.index, rows), take_rows(self.t, rows),
+                        take_rows(self.direction, rows), take_rows(self.channel, rows),
                         None if self.poses is None else self.poses.take(rows))
 
 
@@ -151,6 +153,13 @@ class ScanPattern(Component):
     @abstractmethod
     def rays_for_indices(self, index: np.ndarray) -> RayBatch:
         """The rays with global indices ``index`` ((N,) int64, non-negative)."""
+
+    def nominal_az_el(self, batch: RayBatch, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Azimuth and elevation (rad) of the nominal directions of ``batch``'s rays at
+        ``rows`` (the record's ``azimuth`` and ``elevation`` columns)."""
+        from .geometry import az_el_from_directions
+
+        return az_el_from_directions(take_rows(batch.direction, rows))
 
     def max_off_axis_rad(self) -> float:
         """Largest angle from the boresight any ray can have (for FOV checks)."""

@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from .. import kernels
+from ..base.arrays import take_rows
 from ..base.errors import ConfigError
 from .base import RayBatch, ScanPattern
 
@@ -166,10 +167,27 @@ class CycleTimedPattern(ScanPattern):
     def time_of_index(self, index: np.ndarray) -> np.ndarray:
         return self.cycle.time(index)
 
+    def nominal_az_el(self, batch: RayBatch, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """With fixed slot directions: each slot's azimuth and elevation computed once per
+        pattern and gathered by slot (NumPy's ``arctan2`` and ``hypot`` work element by
+        element, so the values are those of the directions gathered first), unless a
+        subclass makes its own directions."""
+        if self.slot_directions is None or \
+                type(self).rays_for_indices is not CycleTimedPattern.rays_for_indices:
+            return super().nominal_az_el(batch, rows)
+        table = self.__dict__.get("_slot_az_el")
+        if table is None or table[0] is not self.slot_directions:
+            from .geometry import az_el_from_directions
+
+            table = (self.slot_directions, *az_el_from_directions(self.slot_directions))
+            self.__dict__["_slot_az_el"] = table
+        slot = self.cycle.slot(take_rows(batch.index, rows))
+        return np.take(table[1], slot), np.take(table[2], slot)
+
     def rays_for_indices(self, index: np.ndarray) -> RayBatch:
         if self.slot_directions is None:
             raise NotImplementedError(f"{type(self).__name__} sets no slot_directions and "
                                       "does not implement rays_for_indices()")
         index = np.asarray(index, dtype=np.int64)
         t, slot, channel = self.cycle.rays(index)
-        return RayBatch(index, t, self.slot_directions[slot], channel)
+        return RayBatch(index, t, take_rows(self.slot_directions, slot), channel)

@@ -13,6 +13,7 @@ metadata, and every file written from it, is the same to the bit (``tests/test_f
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Any, Sequence
 
 import numpy as np
@@ -24,14 +25,52 @@ from .context import RunContext
 from .spanposes import SpanPoses, span_poses
 
 
+@dataclass(frozen=True, eq=False)
+class PoseRecords:
+    """The metadata's pose records at ``times`` (rows ``2i`` and ``2i + 1``: frame ``i``'s
+    start and end): the sensor's, each target's in the scene and each target's in the
+    sensor frame, as :meth:`~lidarsim_core.geometry.poses.Poses.to_records` gives them."""
+
+    times: np.ndarray
+    sensor: list[dict[str, list[float]]]
+    scene: list[list[dict[str, list[float]]]]
+    inside: list[list[dict[str, list[float]]]]
+
+    def rows(self, start: int, stop: int) -> "PoseRecords":
+        """Rows ``start:stop``, every record a copy (a frame's metadata owns its records)."""
+        def copied(records: list[dict[str, list[float]]]) -> list[dict[str, list[float]]]:
+            return [{key: list(value) for key, value in rec.items()}
+                    for rec in records[start:stop]]
+
+        return PoseRecords(self.times[start:stop], copied(self.sensor),
+                           [copied(r) for r in self.scene], [copied(r) for r in self.inside])
+
+    def at(self, times: np.ndarray) -> "PoseRecords | None":
+        """These records when they were made for exactly ``times``, else None."""
+        same = self.times.shape == times.shape and bool(np.all(self.times == times))
+        return self if same else None
+
+
+def pose_records(ctx: RunContext, times: np.ndarray, poses: SpanPoses | None = None
+                 ) -> PoseRecords:
+    """The trajectories' poses at ``times`` as the metadata records them (``poses``: when
+    already looked up at those times)."""
+    looked_up = (None if poses is None else poses.at(times)) or span_poses(ctx, times)
+    sensor, targets = looked_up.sensor, looked_up.targets
+    return PoseRecords(times, sensor.to_records(), [p.to_records() for p in targets],
+                       [relative_rows(p, sensor).to_records() for p in targets])
+
+
 def frame_infos(ctx: RunContext, frames: Sequence[int], measurement: dict[str, Any],
                 intervals: Sequence[tuple[float, float]] | None = None,
-                poses: SpanPoses | None = None) -> list[FrameInfo]:
+                poses: SpanPoses | None = None, records: PoseRecords | None = None
+                ) -> list[FrameInfo]:
     """Metadata of ``frames`` of a run (what :meth:`Simulation.frame_info` gives for each);
     ``measurement`` is the simulation's description of its measurement model
     (:meth:`Simulation.measurement_info`), the frames' ``extra``; ``intervals`` (one
     ``(t_start, t_end)`` per frame) replace the scenario's frame intervals; ``poses``: the
-    trajectories' poses when already looked up at the frames' starts and ends, in order."""
+    trajectories' poses when already looked up at the frames' starts and ends, in order;
+    ``records``: their pose records, when already made for those times."""
     frames = [int(f) for f in frames]
     if not frames:
         return []
@@ -41,11 +80,8 @@ def frame_infos(ctx: RunContext, frames: Sequence[int], measurement: dict[str, A
     intervals = [(float(a), float(b)) for a, b in intervals]
     # rows 2i and 2i + 1: frame i's start and end
     times = np.array([t for interval in intervals for t in interval], dtype=np.float64)
-    looked_up = (None if poses is None else poses.at(times)) or span_poses(ctx, times)
-    sensor, targets = looked_up.sensor, looked_up.targets
-    sensor_rec = sensor.to_records()
-    scene_rec = [p.to_records() for p in targets]
-    inside_rec = [relative_rows(p, sensor).to_records() for p in targets]
+    made = (None if records is None else records.at(times)) or pose_records(ctx, times, poses)
+    sensor_rec, scene_rec, inside_rec = made.sensor, made.scene, made.inside
     config_hash = ctx.scenario.config_hash()
     noise = [m.name for m in ctx.noise]
     names = [t.name for t in ctx.targets]

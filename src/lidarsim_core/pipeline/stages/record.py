@@ -9,7 +9,6 @@ from __future__ import annotations
 import numpy as np
 
 from ...geometry.vec3 import scale_rows
-from ...patterns.geometry import az_el_from_directions
 from ..bodyframe import body_frame_columns
 from ..context import RunContext
 from .base import Piece
@@ -31,7 +30,7 @@ def record_columns(ctx: RunContext, piece: Piece) -> dict[str, np.ndarray]:
     if cand.true_point is not None:  # returns after bounces: the surface the light came from
         ghost = cand.bounces[rows] > 0
         true[ghost] = cand.true_point[rows][ghost]
-    azimuth, elevation = az_el_from_directions(np.take(batch.direction, pulse, axis=0))
+    azimuth, elevation = ctx.pattern.nominal_az_el(batch, pulse)
     columns = {
         "x": measured[:, 0], "y": measured[:, 1], "z": measured[:, 2],
         "x_true": true[:, 0], "y_true": true[:, 1], "z_true": true[:, 2],

@@ -1,0 +1,308 @@
+"""A child process that writes a serial dataset's frames beside the simulation.
+
+Writing a frame is Python work: the PLY header and the sidecar's JSON, the records converted to
+the file's layout, the checksum, the files. On a thread it holds the interpreter lock that the
+simulating thread needs between its compiled loops: a serial ``lidarsim dataset`` ran at
+0.72-0.78 of the in-memory frames/s however the writing was trimmed. In a process of its own it
+has a lock of its own and runs on whatever core time the simulation leaves (0.78-0.94 of the
+same in-memory frames/s, docs/performance.md, "In a writer process of its own").
+
+The simulating process sends each frame's records (one ``send_bytes`` of the structured
+array) with its path, exporter and frame metadata over a pipe; the child writes it with the
+same :func:`~lidarsim_core.io.write.write_points_file` inside
+:func:`~lidarsim_core.base.atomic.deferred_sync` and sends back the frame's record and the
+paths to sync. The files are the same to the bit as the thread's.
+
+The child is started once per process, on first use (:func:`writer_process`), as ``python -c``
+with this process's import path, in a process group of its own: the terminal's Ctrl-C reaches
+only the simulating process, which stops sending and waits for the frames sent (each written
+atomically or left as a ``.part`` file, as on a thread). It exits when the pipe closes: at the
+parent's exit, or when the parent dies. Until it is ready (the imports take ~0.35 s) and for
+what it cannot take (an exporter that is not built in, a frame spilled to disk), frames go
+to the writer thread.
+
+Environment variables
+---------------------
+``LIDARSIM_WRITER``
+    ``process`` (default on Linux and macOS) or ``threads`` (the writer threads only; the
+    default elsewhere).
+"""
+
+from __future__ import annotations
+
+import atexit
+import json
+import os
+import subprocess
+import sys
+import threading
+from pathlib import Path
+from typing import Any, Callable
+
+from ..base import errors
+from ..base.limits import env_choice
+
+#: Values of ``LIDARSIM_WRITER``.
+MODES = ("process", "threads")
+#: Frames sent to the child and not yet written (the records of each are held until then).
+IN_FLIGHT = 3
+#: Capacity asked for the pipe to the child (Linux): a few frames of ~1,000 points.
+PIPE_BYTES = 2 ** 20
+#: Seconds to wait for the child to finish the frames sent when a run stops or the process
+#: exits, before it is killed.
+STOP_TIMEOUT_S = 60.0
+
+#: What the parent receives for a frame: ``(token, result or None, paths, error or None)``.
+Reply = Callable[[int, "dict[str, Any] | None", "list[Path]", "BaseException | None"], None]
+
+
+def mode() -> str:
+    """``LIDARSIM_WRITER`` (validated): ``process`` or ``threads``."""
+    if os.name != "posix":
+        return "threads"
+    return env_choice("LIDARSIM_WRITER", MODES)
+
+
+#: The child's program: this process's import path, then :func:`serve`.
+_CHILD = ("import json, sys; sys.path[:] = json.loads(sys.argv[1]); "
+          "from lidarsim_core.dataset.writer_process import serve; "
+          "serve(int(sys.argv[2]), int(sys.argv[3]))")
+
+
+class WriterProcess:
+    """The child, and the thread that receives its replies (see the module docstring).
+
+    One run at a time sends frames (:meth:`claim`); the others write on threads.
+    """
+
+    def __init__(self) -> None:
+        from multiprocessing.connection import Connection
+
+        to_child_r, to_child_w = os.pipe()
+        from_child_r, from_child_w = os.pipe()
+        try:  # the child imports what this process imports, from where it does
+            self._child = subprocess.Popen(
+                [sys.executable, "-c", _CHILD, json.dumps(sys.path), str(to_child_r),
+                 str(from_child_w)],
+                pass_fds=(to_child_r, from_child_w), process_group=0,
+                stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                stderr=subprocess.DEVNULL)  # its errors come back as frames' errors
+        except BaseException:
+            os.close(to_child_w)
+            os.close(from_child_r)
+            raise
+        finally:
+            os.close(to_child_r)
+            os.close(from_child_w)
+        import fcntl  # POSIX: mode() is "threads" elsewhere
+
+        if hasattr(fcntl, "F_SETPIPE_SZ"):
+            try:
+                fcntl.fcntl(to_child_w, fcntl.F_SETPIPE_SZ, PIPE_BYTES)
+            except OSError:  # above /proc/sys/fs/pipe-max-size: the default, 64 KiB
+                pass
+        self._tx = Connection(to_child_w, readable=False)
+        self._rx = Connection(from_child_r, writable=False)
+        self.pid = os.getpid()
+        self.ready = threading.Event()
+        self._lock = threading.Lock()
+        self._claimed = False
+        self._reply: Reply | None = None
+        self._in_flight: dict[int, str] = {}
+        self._idle = threading.Condition(self._lock)
+        self.broken: BaseException | None = None
+        #: Frames sent so far (all runs).
+        self.sent = 0
+        self._receiver = threading.Thread(target=self._receive, name="lidarsim-writer-rx",
+                                          daemon=True)
+        self._receiver.start()
+
+    # ---- the run that uses it ----------------------------------------------------------------
+    def claim(self, reply: Reply) -> bool:
+        """Take the child for one run (``reply`` receives its frames); False if another run
+        has it or it is not usable."""
+        with self._lock:
+            if self._claimed or self.broken is not None:
+                return False
+            self._claimed, self._reply = True, reply
+            return True
+
+    def release(self) -> None:
+        """End the run: wait for the frames sent (their replies still go to the run's
+        ``reply``), then free the child for the next run."""
+        self.wait_idle()
+        with self._lock:
+            self._claimed, self._reply = False, None
+
+    def wait_idle(self, timeout_s: float = STOP_TIMEOUT_S) -> None:
+        """Wait until every frame sent has its reply (the child is killed after
+        ``timeout_s``)."""
+        with self._idle:
+            done = self._idle.wait_for(lambda: not self._in_flight, timeout_s)
+        if not done:
+            self._child.kill()
+            self._fail(errors.OutputError(
+                f"the dataset writer process did not finish within {timeout_s:.0f} s"))
+
+    def wait_room(self, timeout_s: float) -> bool:
+        """Wait up to ``timeout_s`` until another frame may be sent (:data:`IN_FLIGHT`) or
+        the child failed; whether it may."""
+        with self._idle:
+            self._idle.wait_for(lambda: len(self._in_flight) < IN_FLIGHT or
+                                self.broken is not None, timeout_s)
+            return len(self._in_flight) < IN_FLIGHT and self.broken is None
+
+    def send(self, token: int, path: str, exporter: str, options: dict[str, Any],
+             frame: dict[str, Any], records: Any) -> None:
+        """Send a frame to write (``records``: its structured array). The pipe holds
+        :data:`PIPE_BYTES`, so the frames in flight are sent without waiting for the child
+        unless they are larger."""
+        with self._lock:
+            if self.broken is not None:
+                raise self.broken
+            self._in_flight[token] = path
+            self.sent += 1
+        try:
+            self._tx.send((token, path, exporter, options, frame, records.dtype,
+                           len(records)))
+            self._tx.send_bytes(memoryview(records).cast("B"))
+        except BaseException as exc:  # the child is gone, or a frame half-sent: unusable
+            self._child.kill()
+            self._fail(errors.OutputError(f"cannot send a frame to the dataset writer "
+                                          f"process: {exc}", source=path))
+            if isinstance(exc, Exception):
+                raise self.broken from None
+            raise
+
+    # ---- the child's replies -----------------------------------------------------------------
+    def _receive(self) -> None:
+        while True:
+            try:
+                message = self._rx.recv()
+            except (EOFError, OSError):
+                code = self._child.poll()
+                self._fail(errors.OutputError(
+                    "the dataset writer process stopped"
+                    + ("" if code is None else f" (exit code {code})")))
+                return
+            if message[0] == "ready":
+                self.ready.set()
+                continue
+            _, token, result, paths, error = message
+            with self._lock:
+                path = self._in_flight.get(token)
+                reply = self._reply
+            exc = None if error is None else _rebuilt(error, path)
+            if reply is not None:
+                reply(token, result, [Path(p) for p in paths], exc)
+            with self._idle:
+                self._in_flight.pop(token, None)
+                self._idle.notify_all()
+
+    def _fail(self, exc: BaseException) -> None:
+        """Mark the child unusable; frames still in flight get ``exc`` as their reply."""
+        with self._lock:
+            if self.broken is None:
+                self.broken = exc
+            pending = list(self._in_flight)
+            reply = self._reply
+        for token in pending:
+            if reply is not None:
+                reply(token, None, [], self.broken)
+        with self._idle:
+            self._in_flight.clear()
+            self._idle.notify_all()
+
+    def cpu_seconds(self) -> float | None:
+        """CPU time the child has used (user and system; Linux's ``/proc``, in clock ticks
+        of 10 ms), or ``None`` where it cannot be read."""
+        try:
+            stat = Path(f"/proc/{self._child.pid}/stat").read_text(encoding="ascii")
+            fields = stat.rsplit(")", 1)[1].split()
+            return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+        except (OSError, ValueError, IndexError):
+            return None
+
+    def close(self) -> None:
+        """Close the pipe (the child exits after the frames sent) and wait for it."""
+        self._tx.close()
+        try:
+            self._child.wait(STOP_TIMEOUT_S)
+        except subprocess.TimeoutExpired:
+            self._child.kill()
+            self._child.wait()
+
+
+def _rebuilt(error: tuple[str, str, str | None, str | None], path: str | None
+             ) -> BaseException:
+    """The child's exception as the parent raises it: a :class:`UserInputError` class of
+    :mod:`lidarsim_core.base.errors` as itself (message, file and field), anything else as
+    an :class:`~lidarsim_core.base.errors.OutputError` naming the frame's file."""
+    name, message, source, field = error
+    kind = getattr(errors, name, None)
+    if isinstance(kind, type) and issubclass(kind, errors.UserInputError):
+        return kind(message, source=source, field=field)
+    return errors.OutputError(f"writing the frame failed ({name}: {message})", source=path)
+
+
+_process: WriterProcess | None = None
+_process_lock = threading.Lock()
+
+
+def writer_process(*, start: bool = True) -> WriterProcess | None:
+    """This process's writer child (started now if ``start`` and not yet started); ``None``
+    where ``LIDARSIM_WRITER`` is ``threads``, or if it cannot start or has failed."""
+    global _process
+    if mode() != "process":
+        return None
+    with _process_lock:
+        if _process is not None and (_process.pid != os.getpid() or _process.broken):
+            _process = None  # a forked child's copy, or a failed one: start another
+        if _process is None and start:
+            try:
+                _process = WriterProcess()
+            except OSError:
+                return None
+            atexit.register(_process.close)
+        return _process
+
+
+# ---- the child --------------------------------------------------------------------------------
+def serve(read_fd: int, write_fd: int) -> None:
+    """The child's loop: write every frame received, reply, exit at the end of the pipe."""
+    from multiprocessing.connection import Connection
+
+    rx = Connection(read_fd, writable=False)
+    tx = Connection(write_fd, readable=False)
+    import numpy as np
+
+    from ..base.atomic import deferred_sync
+    from ..io.points import PointSpool
+    from ..io.write import write_points_file
+    from ..plugins.resolve import exporter_named
+    from ..records.pointcloud import FrameInfo
+    from .frames import make_parent
+
+    tx.send(("ready",))
+    while True:
+        try:
+            token, path, exporter, options, frame, dtype, count = rx.recv()
+            data = rx.recv_bytes()
+        except EOFError:
+            return
+        paths: list[Path] = []
+        try:
+            records = np.frombuffer(data, dtype=dtype, count=count)
+            spool = PointSpool.from_records(FrameInfo.from_dict(frame), records)
+            target = Path(path)
+            make_parent(target)
+            with deferred_sync(paths):
+                record = write_points_file(spool, target,
+                                           exporter=exporter_named(exporter, options))
+            result = {key: record[key] for key in ("file", "points", "bytes", "sha256")}
+            tx.send(("frame", token, result, [os.fspath(p) for p in paths], None))
+        except Exception as exc:  # noqa: BLE001 - every error goes back to the parent
+            described = (type(exc).__name__, getattr(exc, "message", str(exc)),
+                         getattr(exc, "source", None), getattr(exc, "field", None))
+            tx.send(("frame", token, None, [], described))
+

@@ -1,0 +1,121 @@
+"""A serial dataset's frames written by a child process (dataset.writer_process): the same
+bytes as the writer threads, the same one-line errors, and a child that dies mid-run ends
+the run with one line; the rerun resumes to the same directory."""
+
+from __future__ import annotations
+
+import os
+import signal
+from pathlib import Path
+
+import pytest
+
+import lidarsim_core.dataset.writer_process as writer_module
+from lidarsim_core.base.errors import ConfigError, OutputError
+from lidarsim_core.dataset.generate import generate_dataset
+from lidarsim_core.scenario import demo_scenario, scenario_from_dict
+
+pytestmark = pytest.mark.skipif(os.name != "posix", reason="the writer process is POSIX-only")
+
+FRAMES = 12
+
+
+def _scenario():
+    data = demo_scenario(duration_s=0.01, detail="coarse").model_dump(mode="json")
+    data["scan"] = {"duration_s": 0.01, "frames": FRAMES, "frame_period_s": 0.05}
+    return scenario_from_dict(data, source="<test>")
+
+
+def _files(root: Path) -> dict[str, bytes]:
+    return {p.relative_to(root).as_posix(): p.read_bytes()
+            for p in sorted(root.rglob("*")) if p.is_file() and p.name != ".lock"}
+
+
+def _ready(monkeypatch) -> writer_module.WriterProcess:
+    monkeypatch.setenv("LIDARSIM_WRITER", "process")
+    process = writer_module.writer_process()
+    assert process is not None and process.ready.wait(120), "the writer process did not start"
+    return process
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory) -> dict[str, bytes]:
+    """The dataset written by the writer threads alone."""
+    out = tmp_path_factory.mktemp("threads") / "ds"
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv("LIDARSIM_WRITER", "threads")
+        generate_dataset(_scenario(), out)
+    return _files(out)
+
+
+def test_the_process_writes_the_same_bytes_as_the_threads(tmp_path, monkeypatch, reference):
+    process = _ready(monkeypatch)
+    before = process.sent
+    generate_dataset(_scenario(), tmp_path / "ds")
+    assert process.sent - before == FRAMES  # every frame went to the child
+    assert _files(tmp_path / "ds") == reference
+
+
+def test_an_error_in_the_child_is_the_threads_error(tmp_path, monkeypatch):
+    import lidarsim_core.dataset.executors as executors
+
+    real = executors._FrameWriter.put
+
+    def put(self, job, spool, info):
+        if job.frame == 3:  # a directory appears in the frame's way
+            Path(job.path).mkdir()
+        return real(self, job, spool, info)
+
+    monkeypatch.setattr(executors._FrameWriter, "put", put)
+    messages = []
+    for mode in ("threads", "process"):
+        out = tmp_path / mode
+        if mode == "process":
+            _ready(monkeypatch)
+        else:
+            monkeypatch.setenv("LIDARSIM_WRITER", "threads")
+        with pytest.raises(OutputError) as info:
+            generate_dataset(_scenario(), out)
+        messages.append(str(info.value).replace(str(out), "OUT"))
+        assert not list(out.rglob("*.part"))
+    assert messages[0] == messages[1]
+    assert messages[0] == "OUT/frames/frame_000003.ply: output path is a directory"
+
+
+def test_a_child_killed_mid_run_stops_the_run_and_the_rerun_resumes(tmp_path, monkeypatch,
+                                                                      reference):
+    process = _ready(monkeypatch)
+    real = writer_module.WriterProcess.send
+
+    def send(self, token, *args):
+        if token == 4:  # frames 0-3 sent: the child dies while it has them in hand
+            os.kill(self._child.pid, signal.SIGKILL)
+            self._child.wait()
+        return real(self, token, *args)
+
+    monkeypatch.setattr(writer_module.WriterProcess, "send", send)
+    with pytest.raises(OutputError, match="the dataset writer process stopped"):
+        generate_dataset(_scenario(), tmp_path / "ds")
+    assert process.broken is not None
+    monkeypatch.setattr(writer_module.WriterProcess, "send", real)
+    replacement = _ready(monkeypatch)
+    assert replacement is not process
+    generate_dataset(_scenario(), tmp_path / "ds")
+    assert _files(tmp_path / "ds") == reference
+
+
+def test_a_forked_process_starts_its_own_child(monkeypatch):
+    process = _ready(monkeypatch)
+    monkeypatch.setattr(process, "pid", -1)  # as a fork's copy sees it
+    other = writer_module.writer_process()
+    assert other is not None and other is not process
+    monkeypatch.setattr(writer_module, "_process", process)
+    other.close()
+
+
+def test_the_mode_is_read_from_the_environment(monkeypatch):
+    monkeypatch.setenv("LIDARSIM_WRITER", "threads")
+    assert writer_module.writer_process() is None
+    monkeypatch.setenv("LIDARSIM_WRITER", "proces")
+    with pytest.raises(ConfigError, match="LIDARSIM_WRITER='proces' must be one of"):
+        writer_module.writer_process()
