@@ -128,8 +128,8 @@ def frame_result(job: FrameJob, info: Any, record: dict[str, Any]) -> dict[str, 
 
 def make_parent(path: Path) -> None:
     """Create ``path``'s directory unless this process made it already (a sequence's
-    frames share one: a ``mkdir`` a frame would be one more system call on the writer
-    thread, see :mod:`lidarsim_core.io.filegroup`)."""
+    frames share one: a ``mkdir`` a frame would be one more system call for the writer,
+    see :mod:`lidarsim_core.io.filegroup`)."""
     parent = os.fspath(path.parent)
     if parent not in _parents:
         path.parent.mkdir(parents=True, exist_ok=True)

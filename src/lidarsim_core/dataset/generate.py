@@ -54,7 +54,6 @@ from .checks import (
 from .config import DatasetPlan, SequencePlan, load_plan, scenario_variant
 from .durable import DurableFrames
 from .executors import run_dask, run_serial
-from .writer_process import writer_process
 from .frames import FrameJob
 from .identity import (
     dataset_identity,
@@ -91,6 +90,7 @@ from .sharded import (
 )
 from .shards import SHARD_FORMAT, SHARD_SUFFIX, SHARDS_DIR, ShardFormat, sample_key
 from .splits import assign_splits, splits_record, trajectory_key
+from .writer_process import writer_process
 
 #: Name of the only sequence of a dataset made from one scenario.
 SINGLE_SEQUENCE = "main"

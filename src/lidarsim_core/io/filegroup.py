@@ -8,9 +8,10 @@ files whose targets do not exist yet are written by :func:`lidarsim_core.kernels
 with the interpreter lock released for all their system calls at once; a target that is
 there, and any call that fails, go to ``write_bytes_atomic`` from that file on, so the checks,
 the errors and the files are those of the usual path. A frame of a serial ``lidarsim
-dataset`` (its file and sidecar) is written this way by a thread beside the simulation,
-which the usual path's ten lock hand-overs a frame slowed by ~0.3 ms (docs/performance.md,
-"Datasets").
+dataset`` (its file and sidecar) is written this way by the dataset's writer (a process of
+its own, or a thread beside the simulation, where the usual path's ten lock hand-overs a
+frame cost 0.30–0.44 ms against 0.16–0.27 ms: docs/performance.md, "In a writer process of
+its own").
 """
 
 from __future__ import annotations
@@ -20,6 +21,9 @@ import os
 from pathlib import Path
 from typing import Sequence
 
+import numpy as np
+
+from .. import kernels
 from ..base.atomic import PART_FLAGS, PART_MODE, deferred_paths, part_name, write_bytes_atomic
 from ..base.libc import AT_FDCWD, AT_SYMLINK_NOFOLLOW, file_functions
 
@@ -64,11 +68,9 @@ def _write_compiled(paths: list[Path], contents: list[Data]) -> int:
     """How many of the files the compiled loop wrote (0 where it is not used)."""
     functions = file_functions()
     if functions is None or sum(memoryview(d).nbytes for d in contents) > COMPILED_BYTES \
-            or not _kernels_on():
+            or not kernels.enabled():
         return 0
-    import numpy as np
-
-    from ..kernels.oswrite import write_files
+    from ..kernels.oswrite import write_files  # numba: loaded with the first such write
 
     names = bytearray()
     plan = [deferred_paths() is None, *_OPTIONS, len(paths)]
@@ -90,8 +92,3 @@ def _write_compiled(paths: list[Path], contents: list[Data]) -> int:
 _OPTIONS = (PART_FLAGS, PART_MODE, AT_FDCWD, os.F_OK, AT_SYMLINK_NOFOLLOW, errno.ENOENT,
             errno.EINTR)
 
-
-def _kernels_on() -> bool:
-    from ..kernels import enabled
-
-    return enabled()

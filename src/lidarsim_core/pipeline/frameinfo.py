@@ -22,7 +22,7 @@ from .._version import __version__
 from ..geometry.poses import relative_rows
 from ..records.pointcloud import FrameInfo
 from .context import RunContext
-from .spanposes import SpanPoses, span_poses
+from .spanposes import SpanPoses, same_times, span_poses
 
 
 @dataclass(frozen=True, eq=False)
@@ -47,8 +47,7 @@ class PoseRecords:
 
     def at(self, times: np.ndarray) -> "PoseRecords | None":
         """These records when they were made for exactly ``times``, else None."""
-        same = self.times.shape == times.shape and bool(np.all(self.times == times))
-        return self if same else None
+        return self if same_times(self.times, times) else None
 
 
 def pose_records(ctx: RunContext, times: np.ndarray, poses: SpanPoses | None = None

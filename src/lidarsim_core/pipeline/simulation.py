@@ -294,12 +294,9 @@ class Simulation:
 
     def run_frame(self, frame: int = 0, chunk_rays: int | None = None) -> PointCloud:
         """Simulate one frame and return its point cloud."""
-        frames = self.context.scenario.scan.frames
-        if not 0 <= frame < frames:
-            raise ConfigError(f"frame {frame} is outside 0..{frames - 1}",
-                              source=self.context.scenario.source, field="scan.frames")
-        # the metadata and the inside check from a block of frames (frame_ahead); the
-        # pieces are joined once (one piece: its arrays as they are), not per chunk
+        # the metadata and the inside check from a block of frames (frame_ahead, which also
+        # refuses a frame outside the scan); the pieces are joined once (one piece: its
+        # arrays as they are), not per chunk
         info, clear = self.frame_ahead(frame)
         t_start, t_end = self.context.scenario.scan.frame_interval(frame)
         pieces = [columns for _, columns in

@@ -41,8 +41,12 @@ class SpanPoses:
 
     def at(self, times: np.ndarray) -> "SpanPoses | None":
         """These poses when they were looked up at exactly ``times``, else None."""
-        same = self.times.shape == times.shape and bool(np.all(self.times == times))
-        return self if same else None
+        return self if same_times(self.times, times) else None
+
+
+def same_times(a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether two arrays of instants are the same instants, in the same order."""
+    return a.shape == b.shape and bool(np.all(a == b))
 
 
 def span_poses(ctx: RunContext, times: np.ndarray) -> SpanPoses:
