@@ -191,3 +191,24 @@ def test_startup_is_measured_in_a_new_process_that_compiles_nothing():
     assert start["kernels_compiled"] == []  # the kernels came from the disk cache
     assert 0 < start["first_frame_s"] < start["import_to_first_frame_s"]
     assert 0 < start["import_to_first_frame_cpu_s"]
+
+
+def test_warm_up_rounds_are_interleaved_and_not_timed():
+    """interleaved_best runs every probe ``warmup`` times, interleaved, before the rounds it
+    times (the simulation's plan chooses its way in those rounds)."""
+    import time
+
+    from lidarsim_core.bench.timing import interleaved_best
+
+    calls: list[str] = []
+
+    def probe(name, slow_calls):  # noqa: ANN001, ANN202
+        def run():  # noqa: ANN202
+            calls.append(name)
+            if calls.count(name) <= slow_calls:
+                time.sleep(0.05)
+        return run
+
+    best, _ = interleaved_best({"a": probe("a", 3), "b": probe("b", 0)}, rounds=2, warmup=3)
+    assert calls == ["a", "b"] * 5
+    assert best["a"] < 0.04 and best["b"] < 0.04  # the three slow calls of a were not timed

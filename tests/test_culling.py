@@ -142,6 +142,32 @@ def test_culling_drops_most_pulses_that_miss():
     assert hits <= len(kept) < 0.35 * len(batch)
 
 
+def test_a_still_scene_culls_with_every_leaf_and_a_moving_one_with_fewer_boxes(monkeypatch):
+    """A still scene's cube map (kept for every frame) is made of the tree's leaves and keeps
+    fewer pulses than one made of the boxes MOVING_GRID_LEVELS down, which a map made per
+    piece uses; both keep every pulse that hits (test_culling_changes_nothing)."""
+    from lidarsim_core.pipeline import cull as cull_module
+
+    sim = Simulation(demo_scenario(duration_s=0.2, detail="medium"))
+    k0, k1 = sim.frame_rays(0)
+    batch = sim.pattern.rays_for_indices(np.arange(k0, k1))
+    deep = len(sim.culler.keep(sim.context, batch, 0.0))
+    levels = []
+    original = PulseCuller._grid
+
+    def spy(self, rotations, origins, grows, trees, depth):  # noqa: ANN001, ANN202
+        levels.append(depth)
+        return original(self, rotations, origins, grows, trees, depth)
+
+    monkeypatch.setattr(PulseCuller, "_grid", spy)
+    monkeypatch.setattr(cull_module, "CULL_TREE_LEVELS", cull_module.MOVING_GRID_LEVELS)
+    shallow_culler = PulseCuller(sim.culler.margin_rad)
+    shallow = len(shallow_culler.keep(sim.context, batch, 0.0))
+    assert levels == [cull_module.MOVING_GRID_LEVELS]
+    hits = len(sim.run_frame(0))
+    assert hits <= deep < 0.95 * shallow
+
+
 def test_margin_covers_the_largest_possible_draw_and_the_beam():
     sim = Simulation(scenario_from_dict(_wide_angular_error()))
     from lidarsim_core.noise.rng import MAX_ABS_NORMAL
@@ -174,7 +200,7 @@ def test_no_culling_without_the_kernels(monkeypatch):
 
 def test_cull_tree_encloses_every_triangle_and_children_sit_in_parents():
     mesh = Simulation(demo_scenario(duration_s=0.01, detail="medium")).targets[0].mesh
-    lo, hi, child = cull_tree(mesh)
+    lo, hi, child, _ = cull_tree(mesh)
     assert child[0] >= 0 and (child >= -1).all() and len(lo) > 16
     leaves = np.flatnonzero(child < 0)
     tri = mesh.triangles

@@ -237,3 +237,19 @@ def test_without_the_binding_the_backend_casts_through_embreex(monkeypatch):
     through_embreex = backend.intersect(prepared, origins, directions)
     assert through_binding.face.tobytes() == through_embreex.face.tobytes()
     assert through_binding.distance.tobytes() == through_embreex.distance.tobytes()
+
+
+@needs_numba
+def test_a_mesh_prepared_with_the_kernels_off_is_prepared_again_with_them_on(monkeypatch):
+    """The prepared meshes are cached per backend class: one prepared through embreex while
+    LIDARSIM_KERNELS=numpy is not the one the compiled loop gets once the kernels are on."""
+    from lidarsim_core.backends.embree_backend import EmbreeBackend
+
+    mesh = icosphere_mesh(2.5, 2)
+    backend = EmbreeBackend()
+    monkeypatch.setenv("LIDARSIM_KERNELS", "numpy")
+    assert backend.prepared(mesh).compiled is None
+    assert backend.compiled_cast(mesh) is None
+    monkeypatch.setenv("LIDARSIM_KERNELS", "auto")
+    assert backend.prepared(mesh).compiled is not None
+    assert backend.compiled_cast(mesh) is not None

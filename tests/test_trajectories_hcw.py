@@ -12,7 +12,9 @@ from lidarsim_core.trajectories.hcw import HCWTrajectory
 from lidarsim_core.trajectories.orbit import (
     MU_EARTH_M3_S2,
     OrbitConfig,
+    hcw_positions,
     hcw_propagate,
+    hcw_state,
     mean_motion_from_altitude,
 )
 
@@ -115,6 +117,45 @@ def test_forced_vbar_approach_with_holds():
     np.testing.assert_allclose(vel[-1], 0.0, atol=1e-12)  # at rest on V-bar afterwards
     starts = [round(t0) for t0, _ in traj.impulses]
     assert starts == [0, 300, 360, 760]
+
+
+def test_one_state_in_floats_is_a_row_of_the_arrays_bit_for_bit():
+    """hcw_state (plain floats, NumPy's own sine and cosine) gives the bits of the vectorised
+    closed form's row, positions and velocities, for (3,) states with each row's own tau."""
+    rng = np.random.default_rng(11)
+    p, v = rng.normal(0, 80, (200, 3)), rng.normal(0, 0.3, (200, 3))
+    tau = np.concatenate([rng.uniform(-9000, 9000, 100), rng.uniform(-1, 1, 100)])
+    for k in range(200):
+        ref_p, ref_v = hcw_propagate(p[k], v[k], N, tau[k:k + 1])
+        pos, vel = hcw_state(p[k], v[k], N, float(tau[k]))
+        assert np.array_equal(np.array(pos), ref_p[0]) and np.array_equal(np.array(vel), ref_v[0])
+    # the same rows of one array call (a state broadcast over many times)
+    many_p, many_v = hcw_propagate(p[0], v[0], N, tau)
+    assert np.array_equal(hcw_positions(p[0], v[0], N, tau), many_p)
+    rows = np.array([hcw_state(p[0], v[0], N, float(t)) for t in tau])
+    assert np.array_equal(rows[:, 0], many_p) and np.array_equal(rows[:, 1], many_v)
+
+
+def test_one_time_is_the_row_of_many_on_every_kind_of_segment():
+    """states_at and pose_matrices of one time (the culling's middle poses, plain floats) equal
+    that time's row of a call with many, on natural, hold and straight segments and on their
+    boundaries (a boundary belongs to the later segment)."""
+    traj = _hcw(orbit={"altitude_km": 780}, position_m=[5, 250, -3], velocity_m_s=[0.01, 0, 0.02],
+                segments=[{"type": "coast", "duration_s": 100},
+                          {"type": "straight", "to_m": [0, 100, 0], "speed_m_s": 0.5},
+                          {"type": "hold", "duration_s": 60},
+                          {"type": "coast", "duration_s": 50, "delta_v_m_s": [0, 0.01, 0]}])
+    times = np.concatenate([[-50.0, 0.0, 100.0], [t0 for t0, _ in traj.impulses],
+                            np.linspace(-10, traj.end_time_s + 100, 97)])
+    pos, vel = traj.states_at(times)
+    poses = traj.pose_matrices(times).full(len(times))
+    for i, t in enumerate(times):
+        one_p, one_v = traj.states_at(np.array([t]))
+        assert np.array_equal(one_p[0], pos[i]), t
+        assert np.array_equal(one_v[0], vel[i]), t
+        one = traj.pose_matrices(np.array([t]))
+        assert np.array_equal(one.position[0], poses.position[i]), t
+        assert np.array_equal(one.matrix[0], poses.matrix[i]), t
 
 
 def test_look_at_attitude_points_the_boresight_at_the_target():

@@ -142,9 +142,14 @@ class RayBackend(Component):
         bit, or None (the default) when the backend casts only through :meth:`cast`."""
         return None
 
+    def prepared_variant(self) -> Any:
+        """What a prepared structure depends on besides the options and the mesh (part of its
+        cache key; None by default)."""
+        return None
+
     def prepared(self, mesh: Mesh) -> Any:
         """The cached prepared structure of ``mesh``, building it on first use."""
-        key = (self.options, mesh.key)
+        key = (self.options, mesh.key, self.prepared_variant())
         with self._lock:
             if key in self._prepared:
                 self._prepared.move_to_end(key)

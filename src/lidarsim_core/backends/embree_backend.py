@@ -115,6 +115,11 @@ class EmbreeBackend(RayBackend):
         TriangleMesh(scene, triangles)
         return _PreparedEmbree(scene, mesh, center, radius, first_vertex)
 
+    def prepared_variant(self) -> bool:
+        # the binding's scene or embreex's: a mesh prepared while the kernels were off is
+        # not the one to cast with once they are on
+        return binding_status()[0]
+
     def compiled_cast(self, mesh: Mesh) -> CompiledCast | None:
         """The binding's intersect function, scene and refinement arrays of ``mesh`` (None
         where the backend casts through embreex: no binding, or the kernels off)."""

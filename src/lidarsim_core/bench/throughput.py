@@ -51,6 +51,7 @@ import numpy as np
 
 from .. import kernels
 from ..base.threads import worker_threads
+from ..pipeline.balance import EXPLORE
 from ..pipeline.cast import body_rays, process_piece
 from .timing import (bare_embree_probe, binding_description, interleaved_best, threads_env,
                      with_threads)
@@ -197,7 +198,9 @@ def bench_scene(detail: str, *, duration_s: float = 1.0, rounds: int = 12,
     rays["simulate1"] = n
     noiseless = simulation("auto", noise=False)
     probes["noiseless"], rays["noiseless"] = (lambda: noiseless.run_frame(0)), n
-    best, cores = interleaved_best(probes, rounds)
+    # as many untimed rounds as the simulations' first frames need to choose between their
+    # threads and their calling thread (lidarsim_core.pipeline.balance)
+    best, cores = interleaved_best(probes, rounds, warmup=1 + 2 * EXPLORE)
     rate = {key: rays[key] / seconds for key, seconds in best.items()}
 
     def prefixed(prefix: str) -> dict[str, float]:

@@ -17,11 +17,11 @@ from ..base.threads import shared_pool
 from ..scene.mesh import Mesh
 
 
-def interleaved_best(probes: dict[str, Callable[[], Any]], rounds: int
+def interleaved_best(probes: dict[str, Callable[[], Any]], rounds: int, warmup: int = 1
                      ) -> tuple[dict[str, float], dict[str, float]]:
     """Shortest wall time (s) of each probe, measured in ``rounds`` interleaved rounds after
-    one warm-up round, and the cores each probe kept busy on average (process CPU time over
-    wall time).
+    ``warmup`` interleaved rounds that are not timed, and the cores each probe kept busy on
+    average (process CPU time over wall time).
 
     Running every probe once per round, rather than each probe many times in a row, spreads
     each probe's samples over the whole run: on a machine shared with other work, every
@@ -32,12 +32,12 @@ def interleaved_best(probes: dict[str, Callable[[], Any]], rounds: int
     best = {name: math.inf for name in probes}
     wall = {name: 0.0 for name in probes}
     cpu = {name: 0.0 for name in probes}
-    for round_ in range(rounds + 1):
+    for round_ in range(rounds + warmup):
         for name, probe in probes.items():
             start, start_cpu = time.perf_counter(), time.process_time()
             probe()
             elapsed = time.perf_counter() - start
-            if round_:
+            if round_ >= warmup:
                 best[name] = min(best[name], elapsed)
                 wall[name] += elapsed
                 cpu[name] += time.process_time() - start_cpu

@@ -167,9 +167,12 @@ class WriterProcess:
                            len(records)))
             self._tx.send_bytes(memoryview(records).cast("B"))
         except BaseException as exc:  # the child is gone, or a frame half-sent: unusable
+            code = self._child.poll()
             self._child.kill()
-            self._fail(errors.OutputError(f"cannot send a frame to the dataset writer "
-                                          f"process: {exc}", source=path))
+            # a child that died says so as the receiving thread would, whichever sees it first
+            self._fail(errors.OutputError(
+                f"the dataset writer process stopped (exit code {code})" if code is not None
+                else f"cannot send a frame to the dataset writer process: {exc}", source=path))
             if isinstance(exc, Exception):
                 raise self.broken from None
             raise

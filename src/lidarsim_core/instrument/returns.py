@@ -167,8 +167,19 @@ def group_sub_rays(hits: SubRayHits, count: int, weights: np.ndarray, rho_eff_of
     mean = np.add.reduceat(offset, starts) / members
     with np.errstate(invalid="ignore", divide="ignore"):
         shift = np.where(total > 0, weighted / total, mean)
-    strongest = np.lexsort((-power, gid))[starts]
+    strongest = _first_largest(power, starts, gid)
     return (rows[row[starts]], rank[starts], r0 + shift, flat[strongest], total, r[strongest])
+
+
+def _first_largest(values: np.ndarray, starts: np.ndarray, group: np.ndarray) -> np.ndarray:
+    """Per group (``starts``: ascending first rows; ``group``: each row's group), the row of
+    its largest value, the first of equal ones, NaN taken as smallest and a group of NaN
+    giving its first row: what ``np.lexsort((-values, group))[starts]`` gives, in linear time
+    instead of a sort (8× faster on 100,000 rows; ``tests/test_divergence.py`` compares them)."""
+    n = len(values)
+    largest = np.fmax.reduceat(values, starts)  # NaN only for a group of NaN
+    rows = np.minimum.reduceat(np.where(values == largest[group], np.arange(n), n), starts)
+    return np.where(rows == n, starts, rows)
 
 
 def select_returns(pulse: np.ndarray, signal: np.ndarray, mode: str, *,

@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from ..trajectories.orbit import hcw_state
 
 
 def hcw_forced(acceleration: np.ndarray, n: float, tau: float
@@ -86,16 +87,7 @@ def propagate(position: np.ndarray, velocity: np.ndarray, n: float, tau: float, 
 def hcw_step(position: Any, velocity: Any, n: float, tau: float
              ) -> tuple[list[float], list[float]]:
     """:func:`~lidarsim_core.trajectories.orbit.hcw_propagate` of one state over one
-    interval, in plain floating point (the same closed form, ~20 times faster for one row;
-    a step propagates one state: ``tests/test_loop.py`` holds the two within 1e-12)."""
-    x0, y0, z0 = (float(v) for v in position)
-    vx, vy, vz = (float(v) for v in velocity)
-    nt = n * tau
-    c, s = math.cos(nt), math.sin(nt)
-    pos = [(4.0 - 3.0 * c) * x0 + s / n * vx + 2.0 / n * (1.0 - c) * vy,
-           6.0 * (s - nt) * x0 + y0 - 2.0 / n * (1.0 - c) * vx + (4.0 * s - 3.0 * nt) / n * vy,
-           c * z0 + s / n * vz]
-    vel = [3.0 * n * s * x0 + c * vx + 2.0 * s * vy,
-           6.0 * n * (c - 1.0) * x0 - 2.0 * s * vx + (4.0 * c - 3.0) * vy,
-           -n * s * z0 + c * vz]
-    return pos, vel
+    interval, in plain floating point (:func:`~lidarsim_core.trajectories.orbit.hcw_state`:
+    the same closed form and bits, ~10 times faster for one row)."""
+    pos, vel = hcw_state(position, velocity, n, tau)
+    return list(pos), list(vel)

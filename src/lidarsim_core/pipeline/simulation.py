@@ -34,6 +34,7 @@ every hit inside the range gate, one per pulse: the seed paper's model, to the b
 from __future__ import annotations
 
 import threading
+import time
 from dataclasses import fields
 from pathlib import Path
 from typing import Any, Iterator, Sequence
@@ -65,6 +66,7 @@ from ..scenario.load import as_scenario
 from ..scenario.model import NamedComponent, Scenario
 from ..scenario.sensor import ReturnsConfig
 from ..scene.materials import Material, MaterialTable, material_library, part_materials
+from .balance import PiecePlan
 from .budget import check_simulation
 from .cast import process_piece
 from .context import RunContext, Target
@@ -82,8 +84,12 @@ FRAME_BLOCK = 64
 #: Guards every simulation's block of :meth:`Simulation.frame_ahead`.
 _ahead_lock = threading.Lock()
 #: Most rays per unit of work handed to a pipeline thread (a chunk is split into such pieces,
-#: about one per thread; with K sub-rays per pulse a piece holds PIECE_RAYS / K pulses).
-PIECE_RAYS = 65536
+#: about one per thread; with K sub-rays per pulse a piece holds PIECE_RAYS / K pulses). A
+#: piece of the general path costs ~0.4 ms of fixed work, most of it holding the GIL, so few
+#: large pieces: with 7 sub-rays a 100,000-pulse frame took 27 ms on two threads in 11 pieces
+#: of 65,536 rays and 18 ms in 2 of this size, its peak memory 66 and 95 MB (docs/performance.md,
+#: "Threads"); a piece never exceeds the chunk (``chunk_rays``), the run's memory bound.
+PIECE_RAYS = 2 ** 19
 #: Part label of false alarms (appended to the scene's parts when a model makes them).
 FALSE_ALARM_PART = "noise/false_alarm"
 #: The context's public fields, also readable and settable as the simulation's attributes.
@@ -143,6 +149,8 @@ class Simulation:
         self.culler: PulseCuller | None = PulseCuller.for_context(self.context)
         #: The compiled path of the seed paper's model (None: the general path, :mod:`.fused`).
         self.fused: FusedPath | None = FusedPath.for_context(self.context, self.stages)
+        #: How spans are cut into pieces for the threads (:mod:`.balance`).
+        self._plan = PiecePlan()
         # third-party components that fail mid-run are reported with their name
         parts: list[tuple[str, Any]] = [("scan_pattern", pattern), ("ray_backend", backend),
                                         ("trajectory", sensor_trajectory)]
@@ -231,18 +239,40 @@ class Simulation:
         for target in ctx.targets:  # build acceleration structures before the workers start
             ctx.backend.prepared(target.mesh)
         workers = worker_threads() if ctx.backend.thread_safe else 1
-        piece_pulses = piece_size(min(chunk, k1 - k0), workers,
-                                  max(1, PIECE_RAYS // ctx.rays_per_pulse))
-        pieces = [(c, lo, hi) for c, (start, stop) in enumerate(split_range(k0, k1, chunk))
-                  for lo, hi in split_range(start, stop, piece_pulses)]
+        largest = max(1, PIECE_RAYS // ctx.rays_per_pulse)
+        chunks = split_range(k0, k1, chunk)
+        # a span whose chunks make one piece per thread runs so, or on this thread, as the
+        # plan measured faster; its pieces are cut where the last ones took equal times
+        # (:mod:`.balance`)
+        piece_pulses = piece_size(min(chunk, k1 - k0), workers, largest)
+        planned = workers > 1 and any(len(split_range(a, b, piece_pulses)) == workers
+                                      for a, b in chunks)
+        threaded = not planned or self._plan.threaded()
+        if not threaded:
+            workers = 1
+            piece_pulses = piece_size(min(chunk, k1 - k0), 1, largest)
+        pieces: list[tuple[int, int, int]] = []
+        balanced: dict[int, list[float]] = {}  # chunk -> the fractions it was cut at
+        for c, (start, stop) in enumerate(chunks):
+            cut = split_range(start, stop, piece_pulses)
+            if workers > 1 and len(cut) == workers:
+                balanced[c] = self._plan.bounds(workers)
+                cut = self._plan.cuts(start, stop, balanced[c])
+            pieces += [(c, lo, hi) for lo, hi in cut]
+        seconds: dict[tuple[int, int, int], float] = {}
+        began = time.perf_counter()
 
         def work(piece: tuple[int, int, int]) -> dict[str, np.ndarray]:
+            start = time.perf_counter()
             # only pulses that may reach a target go on, with their rays and poses
             batch = culled_piece(ctx, self.culler,
                                  np.arange(piece[1], piece[2], dtype=np.int64), t_frame)
             if self.fused is not None:  # the seed paper's model, compiled: the same bits
-                return self.fused.process(batch, contexts, t_frame)
-            return process_piece(ctx, self.stages, batch, contexts, t_frame, frame)
+                columns = self.fused.process(batch, contexts, t_frame)
+            else:
+                columns = process_piece(ctx, self.stages, batch, contexts, t_frame, frame)
+            seconds[piece] = time.perf_counter() - start
+            return columns
 
         try:
             for (c, _, _), columns in zip(pieces, ordered_map(work, pieces, workers)):
@@ -252,6 +282,12 @@ class Simulation:
             if interrupt is None:
                 raise
             raise interrupt from None
+        if planned:
+            self._plan.timed(threaded, time.perf_counter() - began, k1 - k0)
+        for c, bounds in balanced.items():
+            times = [seconds[p] for p in pieces if p[0] == c]
+            if len(times) == workers:  # (a piece of no pulse leaves the cuts alone)
+                self._plan.record(bounds, times)
 
     def frame_info(self, frame: int) -> FrameInfo:
         """Metadata of ``frame``: timing, poses at start and end, provenance."""

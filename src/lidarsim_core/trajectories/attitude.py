@@ -74,7 +74,7 @@ class LookAtAttitude(ComponentOptions):
         ux, uy, uz = self.up
         norm = math.sqrt(ux * ux + uy * uy + uz * uz)
         ux, uy, uz = ux / norm, uy / norm, uz / norm
-        px, py, pz = (float(v) for v in np.asarray(position, dtype=np.float64).reshape(3))
+        px, py, pz = np.asarray(position, dtype=np.float64).reshape(3).tolist()
         ox, oy, oz = self.point_m[0] - px, self.point_m[1] - py, self.point_m[2] - pz
         distance = math.sqrt(ox * ox + oy * oy + oz * oz)
         r_min = distance - speed * span

@@ -42,6 +42,7 @@ YAML (V-bar approach from 250 m to 20 m; ``altitude_km`` or ``mean_motion_rad_s`
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass
 from typing import Annotated, Any, Literal, Mapping, Union
@@ -57,7 +58,7 @@ from ..geometry.posing import PoseMatrices
 from ..hookspecs import hookimpl
 from .attitude import AttitudeConfig, LookAtAttitude
 from .base import Trajectory
-from .orbit import OrbitConfig, hcw_positions, hcw_propagate
+from .orbit import OrbitConfig, hcw_positions, hcw_propagate, hcw_state
 
 Vec3 = tuple[float, float, float]
 _ZERO3: Vec3 = (0.0, 0.0, 0.0)
@@ -163,6 +164,7 @@ class HCWTrajectory(Trajectory):
         self.impulses: list[tuple[float, np.ndarray]] = []
         self._pieces = self._plan(source, field)
         self._starts = np.array([p.t0 for p in self._pieces])
+        self._start_list = [float(p.t0) for p in self._pieces]  # for one time (bisect)
 
     @classmethod
     def from_config(cls, options: Mapping[str, Any] | None, *, source: str | None = None,
@@ -232,6 +234,8 @@ class HCWTrajectory(Trajectory):
         """(N, 3) LVLH positions (m) and velocities (m/s) at times ``t`` (s from the epoch);
         without ``velocities`` the second array is left unset (the poses need none)."""
         t = np.atleast_1d(np.asarray(t, dtype=np.float64))
+        if len(t) == 1:  # one time (culling asks per piece): plain floats, the same bits
+            return self._state_at(float(t[0]), velocities)
         # the first piece starts at -inf; a time on a boundary belongs to the later piece
         which = np.searchsorted(self._starts, t, side="right") - 1
         pos = np.empty((len(t), 3))
@@ -253,12 +257,29 @@ class HCWTrajectory(Trajectory):
                 vel[sel] = piece.v0
         return pos, vel
 
+    def _state_at(self, t: float, velocities: bool) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`states_at` of one time: the same piece (``bisect_right`` is
+        ``searchsorted(side="right")``) and operations (:func:`.orbit.hcw_state`)."""
+        piece = self._pieces[bisect.bisect_right(self._start_list, t) - 1]
+        tau = t - (piece.t1 if piece.t0 == -math.inf else piece.t0)
+        vel = np.empty((1, 3))
+        if piece.kind == "natural":
+            position, velocity = hcw_state(piece.p0, piece.v0, self.n, tau)
+            if velocities:
+                vel[0] = velocity
+            return np.array([position]), vel
+        if piece.kind == "hold":
+            vel[0] = 0.0
+            return piece.p0[None, :].astype(np.float64), vel
+        vel[0] = piece.v0
+        return (piece.p0 + tau * piece.v0)[None, :], vel
+
     def motion_rates(self, t0: float, t1: float) -> tuple[float, float] | None:
         """The largest speed of the pieces flown in ``[t0, t1]`` (a natural piece's velocity
         components are ``a sin nτ + b cos nτ + c``: at most ``√(a² + b²) + |c|`` each), and
         the attitude law's bound on its turn (:meth:`.LookAtAttitude.rate_bound`)."""
         n = self.n
-        first, last = np.searchsorted(self._starts, [t0, t1], side="right") - 1
+        first, last = (bisect.bisect_right(self._start_list, t) - 1 for t in (t0, t1))
         speed = 0.0
         for piece in self._pieces[first:last + 1]:
             if piece.kind == "straight":

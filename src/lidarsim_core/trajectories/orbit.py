@@ -77,20 +77,38 @@ class OrbitConfig(ComponentOptions):
         return 2.0 * math.pi / self.mean_motion
 
 
+def _position_terms(x0, y0, z0, vx, vy, vz, n, nt, c, s):  # noqa: ANN001, ANN202
+    # the closed form's positions, for floats or arrays alike (the same operations, in the
+    # same order, on each element)
+    return ((4.0 - 3.0 * c) * x0 + s / n * vx + 2.0 / n * (1.0 - c) * vy,
+            6.0 * (s - nt) * x0 + y0 - 2.0 / n * (1.0 - c) * vx + (4.0 * s - 3.0 * nt) / n * vy,
+            c * z0 + s / n * vz)
+
+
+def _velocity_terms(x0, z0, vx, vy, vz, n, c, s):  # noqa: ANN001, ANN202
+    return (3.0 * n * s * x0 + c * vx + 2.0 * s * vy,
+            6.0 * n * (c - 1.0) * x0 - 2.0 * s * vx + (4.0 * c - 3.0) * vy,
+            -n * s * z0 + c * vz)
+
+
+def _components(state: np.ndarray, rows: int) -> tuple[np.ndarray | float, ...]:
+    """The three components of a (3,) state as floats (each combines with every row as the
+    broadcast array would), or of an (N, 3) one as columns."""
+    state = np.asarray(state, dtype=np.float64)
+    if state.shape == (3,):
+        return tuple(float(v) for v in state)
+    return tuple(np.broadcast_to(state, (rows, 3)).T)
+
+
 def _hcw_positions(position: np.ndarray, velocity: np.ndarray, n: float, tau: np.ndarray
-                   ) -> tuple[np.ndarray, tuple[np.ndarray, ...]]:
-    p = np.broadcast_to(np.asarray(position, dtype=np.float64), (len(tau), 3))
-    v = np.broadcast_to(np.asarray(velocity, dtype=np.float64), (len(tau), 3))
-    x0, y0, z0 = p.T
-    vx, vy, vz = v.T
+                   ) -> tuple[np.ndarray, tuple]:
+    x0, y0, z0 = _components(position, len(tau))
+    vx, vy, vz = _components(velocity, len(tau))
     nt = n * tau
     c, s = np.cos(nt), np.sin(nt)
-    pos = np.column_stack([
-        (4.0 - 3.0 * c) * x0 + s / n * vx + 2.0 / n * (1.0 - c) * vy,
-        6.0 * (s - nt) * x0 + y0 - 2.0 / n * (1.0 - c) * vx + (4.0 * s - 3.0 * nt) / n * vy,
-        c * z0 + s / n * vz,
-    ])
-    return pos, (x0, z0, vx, vy, vz, nt, c, s)
+    pos = np.empty((len(tau), 3))
+    pos[:, 0], pos[:, 1], pos[:, 2] = _position_terms(x0, y0, z0, vx, vy, vz, n, nt, c, s)
+    return pos, (x0, z0, vx, vy, vz, c, s)
 
 
 def hcw_positions(position: np.ndarray, velocity: np.ndarray, n: float,
@@ -98,6 +116,20 @@ def hcw_positions(position: np.ndarray, velocity: np.ndarray, n: float,
     """The positions of :func:`hcw_propagate` alone (the same arithmetic, the same bits)."""
     tau = np.atleast_1d(np.asarray(tau, dtype=np.float64))
     return _hcw_positions(position, velocity, n, tau)[0]
+
+
+def hcw_state(position: np.ndarray, velocity: np.ndarray, n: float, tau: float
+              ) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
+    """:func:`hcw_propagate` of one (3,) state over one interval ``tau`` (s), in plain floats:
+    the same operations with NumPy's own sine and cosine, so the same bits as a row of the
+    arrays (``tests/test_trajectories_hcw.py``), in ~3 µs instead of ~25: the poses and rate
+    bounds of one time that culling asks for per piece, and the control loop's steps."""
+    x0, y0, z0 = np.asarray(position, dtype=np.float64).reshape(3).tolist()
+    vx, vy, vz = np.asarray(velocity, dtype=np.float64).reshape(3).tolist()
+    nt = n * float(tau)
+    c, s = float(np.cos(nt)), float(np.sin(nt))
+    return (_position_terms(x0, y0, z0, vx, vy, vz, n, nt, c, s),
+            _velocity_terms(x0, z0, vx, vy, vz, n, c, s))
 
 
 def hcw_propagate(position: np.ndarray, velocity: np.ndarray, n: float,
@@ -119,12 +151,9 @@ def hcw_propagate(position: np.ndarray, velocity: np.ndarray, n: float,
         (N, 3) LVLH state at each ``tau``.
     """
     tau = np.atleast_1d(np.asarray(tau, dtype=np.float64))
-    pos, (x0, z0, vx, vy, vz, nt, c, s) = _hcw_positions(position, velocity, n, tau)
-    vel = np.column_stack([
-        3.0 * n * s * x0 + c * vx + 2.0 * s * vy,
-        6.0 * n * (c - 1.0) * x0 - 2.0 * s * vx + (4.0 * c - 3.0) * vy,
-        -n * s * z0 + c * vz,
-    ])
+    pos, (x0, z0, vx, vy, vz, c, s) = _hcw_positions(position, velocity, n, tau)
+    vel = np.empty((len(tau), 3))
+    vel[:, 0], vel[:, 1], vel[:, 2] = _velocity_terms(x0, z0, vx, vy, vz, n, c, s)
     return pos, vel
 
 
