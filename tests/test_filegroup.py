@@ -163,3 +163,30 @@ def test_without_the_compiled_call_the_files_are_the_same(tmp_path, monkeypatch)
     monkeypatch.setattr(filegroup, "_write_compiled", lambda paths, contents: 0)
     write_files_atomic([(tmp_path / "b", data)])
     assert (tmp_path / "a").read_bytes() == (tmp_path / "b").read_bytes() == data
+
+
+@pytest.mark.parametrize("writer", ["write_bytes_atomic", "atomic_output"])
+def test_an_interrupt_while_the_temporary_file_is_created_leaves_nothing(tmp_path, monkeypatch,
+                                                                         writer):
+    """Ctrl-C (or SIGTERM under the CLI) handled just after the temporary file is created,
+    before its name reaches the writer: the name was known before the file existed, so the
+    file is removed and the target never appears (a CI run of test_interrupts met this)."""
+    real_open = os.open
+
+    def open_then_interrupt(name, *args, **kwargs):  # noqa: ANN001, ANN002, ANN003, ANN202
+        fd = real_open(name, *args, **kwargs)
+        if str(name).endswith(".part"):
+            os.close(fd)
+            raise KeyboardInterrupt
+        return fd
+
+    monkeypatch.setattr(atomic.os, "open", open_then_interrupt)
+    target = tmp_path / "frame.ply"
+    with pytest.raises(KeyboardInterrupt):
+        if writer == "write_bytes_atomic":
+            atomic.write_bytes_atomic(target, b"x" * 100)
+        else:
+            with atomic.atomic_output(target) as stream:
+                stream.write(b"x")
+    monkeypatch.setattr(atomic.os, "open", real_open)
+    assert sorted(p.name for p in tmp_path.iterdir()) == []

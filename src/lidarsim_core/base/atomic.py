@@ -40,20 +40,20 @@ def atomic_output(path: str | Path, *, overwrite: bool = True) -> Iterator[IO[by
     from .outputs import check_replaceable
 
     check_replaceable(path)  # a device, FIFO or socket is never replaced by a regular file
-    tmp: str | None = None
+    made: list[str] = []  # the temporary file's name, known before the file is created
     try:
-        fd, tmp = _open_part(path, os.fspath(parent))
+        fd = _open_part(path, os.fspath(parent), made)
         deferred = deferred_paths()
         with os.fdopen(fd, "wb") as stream:
             yield stream
             stream.flush()
             if deferred is None:
                 os.fsync(stream.fileno())
-        os.replace(tmp, path)
+        os.replace(made[-1], path)
         if deferred is not None:
             deferred.append(path)
     except BaseException as exc:
-        _discard(tmp)
+        _discard(made)
         if isinstance(exc, UserInputError) and exc.source is None:
             # an exporter's complaint (a column that does not fit the format) names the file
             raise type(exc)(exc.message, source=path, field=exc.field) from None
@@ -102,9 +102,9 @@ def write_bytes_atomic(path: str | Path, data: bytes | bytearray | memoryview, *
     target = os.fspath(path)
     _check_existing(path, overwrite)
     parent = os.path.dirname(target)
-    tmp: str | None = None
+    made: list[str] = []  # the temporary file's name, known before the file is created
     try:
-        fd, tmp = _open_part(path, parent)
+        fd = _open_part(path, parent, made)
         deferred = deferred_paths()
         try:
             view = memoryview(data).cast("B")
@@ -114,31 +114,36 @@ def write_bytes_atomic(path: str | Path, data: bytes | bytearray | memoryview, *
                 os.fsync(fd)
         finally:
             os.close(fd)
-        os.replace(tmp, target)
+        os.replace(made[-1], target)
         if deferred is not None:
             deferred.append(path)
     except BaseException as exc:
-        _discard(tmp)
+        _discard(made)
         if isinstance(exc, OSError) and not isinstance(exc, OutputError):
             raise OutputError(f"cannot write: {describe_os_error(exc)}", source=path) from exc
         raise
     return path
 
 
-def _open_part(path: Path, parent: str) -> tuple[int, str]:
+def _open_part(path: Path, parent: str, made: list[str]) -> int:
     """A new hidden temporary file beside ``path`` in ``parent`` (``""``: the current
-    directory), opened for writing: its descriptor and name. O_EXCL: a name that exists (a
-    leftover) is never ours and is left alone, another is drawn; the mode is reduced by the
-    umask as for any new file. Failures are the one-line :class:`OutputError` naming
-    ``path``."""
+    directory), opened for writing: its descriptor. Its name is put in ``made`` before the
+    file is created, so that an interrupt (Ctrl-C, SIGTERM under the CLI) arriving while it
+    is created cannot strand it: the caller discards what ``made`` names. O_EXCL: a name
+    that exists (a leftover) is never ours and is taken out of ``made`` and left alone,
+    another is drawn; the mode is reduced by the umask as for any new file. Failures are the
+    one-line :class:`OutputError` naming ``path``."""
     flags = PART_FLAGS
     attempts = 8
     try:
         while True:
-            tmp = part_name(path, parent)
+            made.append(part_name(path, parent))
             try:
-                return os.open(tmp, flags, PART_MODE), tmp
-            except FileExistsError:
+                return os.open(made[-1], flags, PART_MODE)
+            except OSError as exc:
+                made.pop()  # not created (an interrupt keeps the name: it may have been)
+                if not isinstance(exc, FileExistsError):
+                    raise
                 attempts -= 1
                 if not attempts:
                     raise
@@ -169,12 +174,13 @@ def deferred_paths() -> list[Path] | None:
     return getattr(_local, "deferred", None)
 
 
-def _discard(tmp: str | None) -> None:
-    """Remove a temporary file a failed write leaves (if it was created)."""
-    if tmp is not None:
+def _discard(made: list[str]) -> None:
+    """Remove the temporary file a failed write leaves (if it was created: ``made`` names it
+    from just before its creation)."""
+    for tmp in made:
         try:
             os.unlink(tmp)
-        except FileNotFoundError:
+        except OSError:  # not there (never created, or renamed): what stopped the write stands
             pass
 
 
