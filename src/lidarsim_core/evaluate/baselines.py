@@ -13,8 +13,9 @@ imported when an estimator first runs, never at registration.
 
 from __future__ import annotations
 
+import threading
 import zlib
-from typing import Any
+from typing import Any, Callable
 
 import numpy as np
 from pydantic import Field
@@ -328,12 +329,12 @@ class FpfhRansacIcp(PoseEstimator):
         candidates: list[tuple[tuple[float, float], int, np.ndarray]] = []
         for seed in seeds:
             o3d.utility.random.seed(int(seed))
-            ransac = reg.registration_ransac_based_on_feature_matching(
+            ransac = _one_thread(o3d, lambda: reg.registration_ransac_based_on_feature_matching(
                 scan_down, model_down, scan_features, self._features[key], False, distance,
                 reg.TransformationEstimationPointToPoint(False), 3,
                 [reg.CorrespondenceCheckerBasedOnEdgeLength(0.9),
                  reg.CorrespondenceCheckerBasedOnDistance(distance)],
-                reg.RANSACConvergenceCriteria(opts.ransac_iterations, opts.ransac_confidence))
+                reg.RANSACConvergenceCriteria(opts.ransac_iterations, opts.ransac_confidence)))
             if ransac.fitness == 0:
                 continue
             hypothesis = np.linalg.inv(np.asarray(ransac.transformation))
@@ -354,6 +355,22 @@ class FpfhRansacIcp(PoseEstimator):
                 best, best_key = estimate, score
         return best if best is not None else PoseEstimate.failure(
             "no candidate pose refined to min_fitness")
+
+
+_open3d_threads = threading.Lock()
+
+
+def _one_thread(o3d: Any, run: Callable[[], Any]) -> Any:
+    """``run()`` with Open3D on one thread: its RANSAC draws its samples on every thread at
+    once, so on several its result depends on their timing (a view of Envisat flipped by
+    180° in one CI run); on one it is the seed's alone."""
+    with _open3d_threads:
+        before = o3d.utility.get_max_threads()
+        o3d.utility.set_max_threads(1)
+        try:
+            return run()
+        finally:
+            o3d.utility.set_max_threads(before)
 
 
 class GtNoiseOptions(ComponentOptions):
