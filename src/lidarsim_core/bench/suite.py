@@ -333,7 +333,7 @@ def fused_stages(fused: Any, batch: Any, contexts: list[Any], t_frame: float, em
 def bench_suite_scene(name: str, *, duration_s: float = 1.0, rounds: int = 5,
                       stages: bool = True) -> dict[str, Any]:
     """Benchmark one scene of :data:`SUITE` (see the module docstring)."""
-    from ..pipeline.balance import EXPLORE
+    from ..pipeline.balance import SPANS_TO_CHOOSE
     from ..pipeline.simulation import Simulation
     from ..scenario.load import scenario_from_dict
 
@@ -360,7 +360,7 @@ def bench_suite_scene(name: str, *, duration_s: float = 1.0, rounds: int = 5,
     # the simulation's first frames try its threads and its calling thread in turn
     # (:mod:`lidarsim_core.pipeline.balance`): they are the warm-up rounds, interleaved with
     # the other probes as the timed rounds are, so that the plan chooses in their conditions
-    best, cores = interleaved_best(probes, rounds, warmup=1 + 2 * EXPLORE)
+    best, cores = interleaved_best(probes, rounds, warmup=SPANS_TO_CHOOSE)
     rate = {key: emitted / seconds for key, seconds in best.items()}
     result: dict[str, Any] = {
         "description": description, "backend": sim.backend.name,

@@ -51,7 +51,7 @@ import numpy as np
 
 from .. import kernels
 from ..base.threads import worker_threads
-from ..pipeline.balance import EXPLORE
+from ..pipeline.balance import SPANS_TO_CHOOSE
 from ..pipeline.cast import body_rays, process_piece
 from .timing import (bare_embree_probe, binding_description, interleaved_best, threads_env,
                      with_threads)
@@ -200,7 +200,7 @@ def bench_scene(detail: str, *, duration_s: float = 1.0, rounds: int = 12,
     probes["noiseless"], rays["noiseless"] = (lambda: noiseless.run_frame(0)), n
     # as many untimed rounds as the simulations' first frames need to choose between their
     # threads and their calling thread (lidarsim_core.pipeline.balance)
-    best, cores = interleaved_best(probes, rounds, warmup=1 + 2 * EXPLORE)
+    best, cores = interleaved_best(probes, rounds, warmup=SPANS_TO_CHOOSE)
     rate = {key: rays[key] / seconds for key, seconds in best.items()}
 
     def prefixed(prefix: str) -> dict[str, float]:

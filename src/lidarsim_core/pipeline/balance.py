@@ -40,6 +40,9 @@ MIN_MEASURED_S = 2e-4
 PROBE_EVERY = 16
 #: Spans measured each way before the faster is chosen.
 EXPLORE = 2
+#: Spans a plan runs before it has chosen: one that fills the caches, then :data:`EXPLORE`
+#: each way (a benchmark leaves them untimed).
+SPANS_TO_CHOOSE = 1 + 2 * EXPLORE
 #: Measured spans kept per way (the least of them is its cost: a span slowed by the machine
 #: does not turn the choice for long).
 SAMPLES = 3
