@@ -16,7 +16,7 @@ import pytest
 import yaml
 from test_dataset import SCENARIO, run_cli, tree
 
-FRAMES = 16
+FRAMES = 32
 CODE = "import sys; from lidarsim_core.cli import main; main(sys.argv[1:])"
 
 

@@ -132,3 +132,33 @@ def test_frames_take_their_metadata_from_a_block(tmp_path, monkeypatch) -> None:
     first = sim.run_frame(0).frame
     first.sensor_pose_start["translation_m"][0] = 1e9  # a user's edit stays in its cloud
     assert sim.run_frame(0).frame.to_dict() == sim.frame_info(0).to_dict()
+
+
+def test_kept_metadata_is_handed_out_once_and_is_what_the_frame_makes():
+    """A dataset's poses file makes every frame's metadata before the frames run; kept with
+    the simulation (keep_frame_infos), each frame takes its own once instead of making it
+    again, the same to the bit; metadata kept for another trajectory or another frame timing
+    is not used."""
+    reference = _sequence("tumbling-risley", 6)
+    made = [reference.frame_ahead(f) for f in range(6)]
+    sim = _sequence("tumbling-risley", 6)
+    infos = sim.frame_infos(range(6))
+    sim.keep_frame_infos(infos[:4])
+    got = [sim.frame_ahead(f) for f in range(6)]
+    assert [(i.to_dict(), clear) for i, clear in got] == \
+        [(i.to_dict(), clear) for i, clear in made]
+    assert all(got[f][0] is infos[f] for f in range(4))  # handed out, not made again
+    assert got[4][0] is not infos[4]
+    again = sim.frame_ahead(0)[0]  # once only: a second call makes its own
+    assert again is not infos[0] and again.to_dict() == made[0][0].to_dict()
+
+    other = _sequence("tumbling-risley", 6)
+    kept = other.frame_infos(range(6))
+    other.keep_frame_infos(kept)
+    other.sensor_trajectory = _sequence("tumbling-rose", 6).sensor_trajectory
+    assert other.frame_ahead(1)[0] is not kept[1]
+    timed = _sequence("tumbling-risley", 6)
+    kept = timed.frame_infos(range(6))
+    timed.keep_frame_infos(kept)
+    timed.scenario.scan.frame_rate_hz = 5.0  # the frames start at other times
+    assert timed.frame_ahead(1)[0] is not kept[1]

@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from lidarsim_core.pipeline import Simulation
-from lidarsim_core.pipeline.balance import DEAD_BAND, EXPLORE, MIN_SHARE, PROBE_EVERY, PiecePlan
+from lidarsim_core.pipeline.balance import (DEAD_BAND, EXPLORE, MIN_SHARE, PROBE_EVERY, PROBE_MOST,
+                                           PiecePlan)
 from lidarsim_core.scenario import demo_scenario
 
 
@@ -85,8 +86,10 @@ def test_skewed_cuts_leave_every_column_unchanged(monkeypatch):
 
 def test_the_faster_way_is_chosen_and_the_other_tried_now_and_then():
     """Each way in turn (after a first span that only warms the caches) until both were
-    measured, then the one with the least seconds per pulse, the other every PROBE_EVERY
-    spans; a way that becomes slower loses the choice at its next measurements."""
+    measured, then the one with the least seconds per pulse; the other is tried PROBE_EVERY
+    spans after the choice, then at spacings that double up to PROBE_MOST while it stays
+    slower; a way that becomes slower loses the choice at its next try, and the spacing
+    starts again."""
     plan = PiecePlan()
     ways = []
 
@@ -99,11 +102,21 @@ def test_the_faster_way_is_chosen_and_the_other_tried_now_and_then():
     span(9.0, 9.0)  # the first span: on the threads, not recorded
     explored = [span(2e-3, 3e-3) for _ in range(2 * EXPLORE)]
     assert explored == [True, False] * EXPLORE
-    chosen = [span(2e-3, 3e-3) for _ in range(3 * PROBE_EVERY)]
-    assert chosen.count(False) == 3 and chosen.count(True) == 3 * PROBE_EVERY - 3
-    # the scene shrinks: the calling thread gets faster than the threads
-    later = [span(2e-3, 1e-3) for _ in range(3 * PROBE_EVERY)]
-    assert later[-PROBE_EVERY:].count(False) == PROBE_EVERY - 1
+    spans = 8 * PROBE_MOST
+    chosen = [span(2e-3, 3e-3) for _ in range(spans)]
+    tries = [i for i, way in enumerate(chosen) if not way]  # spans after the choice
+    expected, at, spacing = [], PROBE_EVERY, PROBE_EVERY
+    while at < spans:
+        expected.append(at)
+        at, spacing = at + spacing, min(2 * spacing, PROBE_MOST)
+    assert tries == expected
+    assert tries[1] - tries[0] == PROBE_EVERY and tries[-1] - tries[-2] == PROBE_MOST
+    # the scene shrinks: the calling thread gets faster than the threads, and wins at the
+    # next try (within PROBE_MOST spans); the threads are tried again PROBE_EVERY after
+    later = [span(2e-3, 1e-3) for _ in range(PROBE_MOST + 2 * PROBE_EVERY)]
+    turned = later.index(False)  # the try that turns the choice
+    assert turned < PROBE_MOST
+    assert later[turned:turned + PROBE_EVERY + 2] == [False] * (PROBE_EVERY + 1) + [True]
 
 
 def test_the_calling_thread_runs_the_span_when_it_is_faster(monkeypatch):

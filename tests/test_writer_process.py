@@ -119,3 +119,82 @@ def test_the_mode_is_read_from_the_environment(monkeypatch):
     monkeypatch.setenv("LIDARSIM_WRITER", "proces")
     with pytest.raises(ConfigError, match="LIDARSIM_WRITER='proces' must be one of"):
         writer_module.writer_process()
+
+
+def _spool_of(parts):
+    from lidarsim_core.io.points import PointSpool
+    from lidarsim_core.records.pointcloud import FrameInfo
+
+    spool = PointSpool(FrameInfo.from_dict(_frame_dict()))
+    for part in parts:
+        spool.append(part)
+    return spool
+
+
+def _frame_dict():
+    from lidarsim_core.pipeline import Simulation
+
+    return Simulation(_scenario()).frame_info(0).to_dict()
+
+
+def test_the_child_joins_the_chunks_as_the_spool_does():
+    """The chunks' columns go to the child as they are (no join on the simulating thread);
+    joined there, column by column with NumPy's assignment casts, they are the spool's own
+    records to the bit: a float64 column of a float32 field (rounded), an int64 column of an
+    int16 field, a bool column of a uint8 field, a plugin's extra column, an empty chunk."""
+    import numpy as np
+
+    rng = np.random.default_rng(7)
+
+    def part(n):
+        return {"x": rng.normal(size=n), "intensity": rng.normal(size=n) * 1e3,
+                "target": rng.integers(-3, 3, size=n), "detected": rng.random(n) < 0.5,
+                "snr_db": rng.normal(size=n).astype(np.float32)}
+
+    parts = [part(5), part(0), part(1), part(64)]
+    spool = _spool_of(parts)
+    layout_parts = spool.parts()
+    assert writer_module.sendable(layout_parts)
+    layout, columns = writer_module._layout(layout_parts)
+    data = b"".join(bytes(b) for b in columns)
+    assert len(data) == writer_module._columns_size(layout)
+    joined = writer_module.joined_records(spool.record_dtype, layout, data)
+    expected = spool.records()
+    assert joined.dtype == expected.dtype and joined.tobytes() == expected.tobytes()
+    assert joined["intensity"].dtype == np.float32 and joined["target"].dtype == np.int16
+
+
+def test_only_plain_columns_are_sent_as_bytes():
+    """Frames the child could not rebuild from bytes stay with the writer thread."""
+    import numpy as np
+
+    plain = {"x": np.arange(4.0), "target": np.arange(4, dtype=np.int16)}
+    assert writer_module.sendable([plain])
+    assert not writer_module.sendable([{**plain, "label": np.array(list("abcd"), dtype=object)}])
+    assert not writer_module.sendable([{**plain, "x": np.arange(8.0)[::2]}])  # strided
+    pairs = np.zeros(4, dtype=[("a", "f8"), ("b", "f8")])
+    assert not writer_module.sendable([{**plain, "pair": pairs}])
+    stamps = np.zeros(4, dtype="M8[ns]")  # no buffer export
+    assert not writer_module.sendable([{**plain, "time": stamps}])
+    assert not writer_module.sendable([{**plain, "xyz": np.zeros((4, 3))}])
+    assert not writer_module.sendable([{**plain, "listed": [1, 2, 3, 4]}])
+
+
+def test_the_child_answers_frames_in_groups(tmp_path, monkeypatch, reference):
+    """The child answers up to REPLY_FRAMES frames in one reply (one wake-up of the receiving
+    thread; here the twelve frames came as 4 + 4 + 4), and every frame sent is answered by the
+    end of the run (the parent asks for the last answers when it waits for them)."""
+    process = _ready(monkeypatch)
+    sizes = []
+    real = writer_module.WriterProcess._in_flight_done
+
+    def done(self, tokens):
+        sizes.append(len(tokens))
+        return real(self, tokens)
+
+    monkeypatch.setattr(writer_module.WriterProcess, "_in_flight_done", done)
+    before = process.sent
+    generate_dataset(_scenario(), tmp_path / "ds")
+    assert process.sent - before == FRAMES == sum(sizes)
+    assert max(sizes) <= writer_module.REPLY_FRAMES
+    assert _files(tmp_path / "ds") == reference

@@ -11,7 +11,7 @@ import sys
 import threading
 from contextlib import contextmanager
 from pathlib import Path
-from typing import IO, Iterator
+from typing import IO, Iterator, Sequence
 
 from .errors import OutputError, UserInputError
 from .oserrors import describe_os_error
@@ -286,14 +286,14 @@ def deferred_sync(paths: list[Path]) -> Iterator[list[Path]]:
         _local.deferred = before
 
 
-def sync_files(paths: list[Path]) -> None:
+def sync_files(paths: Sequence[str | os.PathLike[str]]) -> None:
     """Make ``paths`` and their directory entries durable: on Linux one ``syncfs`` per file
     system they are on; elsewhere (or if ``syncfs`` fails, which is how a write error of
     the file system shows) an ``fsync`` of each file, whose error names the file
     (:class:`OutputError`), and of each directory."""
     if not paths:
         return
-    directories = sorted({str(Path(p).parent) for p in paths})
+    directories = sorted({os.path.dirname(os.fspath(p)) or "." for p in paths})
     if sys.platform.startswith("linux") and _syncfs(directories):
         return
     for path in paths:

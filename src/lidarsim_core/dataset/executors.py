@@ -21,7 +21,7 @@ from ..base.errors import ConfigError
 from ..base.optional import require
 from ..plugins.resolve import exporter_named
 from .frames import FrameJob, frame_result, run_frame_job, simulate_frame_job, write_frame_job
-from .writer_process import writer_process
+from .writer_process import sendable, writer_process
 
 OnResult = Callable[[dict[str, Any]], None]
 OnDurable = Callable[[list[dict[str, Any]]], None]
@@ -116,6 +116,8 @@ class _FrameWriter:
             thread.start()
         if on_durable is not None:
             self._syncer.start()
+        # the last jobs' exporter and options, and whether the writer process has it
+        self._exporter: tuple[tuple[str, dict[str, Any]], bool] | None = None
         # frames sent to the writer process: submission number -> (job, info)
         self._sent: dict[int, tuple[FrameJob, Any]] = {}
         self._process = writer_process() if on_durable is not None else None
@@ -135,10 +137,16 @@ class _FrameWriter:
 
     def _to_process(self, job: FrameJob, spool: Any) -> Any:
         """The writer process if it takes this frame now (ready, a built-in exporter, the
-        records in memory), else ``None``."""
+        chunks in memory and of plain columns: :func:`.writer_process.sendable`), else
+        ``None``."""
         process = self._process
-        if process is None or not process.ready.is_set() or spool.records() is None or \
-                not _built_in(job.exporter, job.exporter_options):
+        parts = None if process is None or not process.ready.is_set() else spool.parts()
+        if parts is None or not sendable(parts):
+            return None
+        exporter = (job.exporter, job.exporter_options)
+        if self._exporter is None or self._exporter[0] != exporter:  # jobs share theirs
+            self._exporter = (exporter, _built_in(*exporter))
+        if not self._exporter[1]:
             return None
         while not process.wait_room(0.1):
             self._raise()
@@ -199,10 +207,10 @@ class _FrameWriter:
         if process is not None:
             with self._lock:
                 self._sent[self._submitted] = (job, info)
-            records = spool.records()
-            spool.close()  # the records stay alive until they are sent
+            dtype, parts = spool.record_dtype, spool.parts()
+            spool.close()  # the chunks stay alive until they are sent
             process.send(self._submitted, job.path, job.exporter, job.exporter_options,
-                         info.to_dict(), records)
+                         info.to_dict(), dtype, parts)
         else:
             self._put(self._queue, (self._submitted, job, spool, info))
         self._submitted += 1

@@ -12,6 +12,7 @@ import hashlib
 import os
 from collections import OrderedDict
 from dataclasses import dataclass, field
+from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
@@ -64,8 +65,23 @@ class FrameJob:
     @property
     def cache_key(self) -> str:
         """Key of the simulation this job needs."""
-        text = f"{self.source}\n{self.scenario_json}"
-        return hashlib.sha256(text.encode("utf-8")).hexdigest()
+        return _cache_key(self.source, self.scenario_json)
+
+
+@lru_cache(maxsize=CACHE_SIZE)
+def _cache_key(source: str | None, scenario_json: str) -> str:
+    # every frame of a sequence asks with the same strings (their hashes are kept by Python)
+    return hashlib.sha256(f"{source}\n{scenario_json}".encode("utf-8")).hexdigest()
+
+
+def keep_simulation(source: str | None, scenario_json: str, sim: Any) -> None:
+    """Let the jobs of this scenario (``scenario_json`` read from ``source``) run in ``sim``,
+    built from them already (a serial run's sequence: one build instead of two)."""
+    key = _cache_key(source, scenario_json)
+    _simulations[key] = sim
+    _simulations.move_to_end(key)
+    while len(_simulations) > CACHE_SIZE:
+        _simulations.popitem(last=False)
 
 
 def _simulation(job: FrameJob) -> Any:

@@ -26,6 +26,9 @@ if TYPE_CHECKING:
 _SPOOL_BYTES = 8 * 2 ** 20
 #: Frames whose poses are computed together (bounded memory for any sequence length).
 _BLOCK_FRAMES = 512
+#: Frames of a run whose metadata the poses files hand to the simulations at most (one
+#: block: ~1 MB).
+KEEP_FRAMES = _BLOCK_FRAMES
 
 
 class _Hashing:
@@ -40,10 +43,13 @@ class _Hashing:
         self.stream.write(data)
 
 
-def _write(out: _Hashing, sim: "Simulation", frames: int, cloud: Callable[[int], str]) -> None:
+def _write(out: _Hashing, sim: "Simulation", frames: int, cloud: Callable[[int], str],
+           keep: int) -> None:
     for start in range(0, frames, _BLOCK_FRAMES):
         block = range(start, min(frames, start + _BLOCK_FRAMES))
         infos = sim.frame_infos(block)  # every trajectory evaluated once per block
+        if start == 0 and keep > 0:
+            sim.keep_frame_infos(infos[:keep])
         clouds = [cloud(frame) for frame in block]
         if start == 0:
             header = ground_truth(infos[:1], clouds[:1])
@@ -58,13 +64,16 @@ def _write(out: _Hashing, sim: "Simulation", frames: int, cloud: Callable[[int],
 class PosesFile:
     """The poses of a sequence, generated once into a spooled buffer and hashed.
 
-    Call :meth:`save` to put them in place (atomically); use as a context manager.
+    Call :meth:`save` to put them in place (atomically); use as a context manager. The
+    metadata of the first ``keep`` frames (at most one block of 512) is handed to ``sim`` for
+    its frames (:meth:`~lidarsim_core.pipeline.simulation.Simulation.keep_frame_infos`).
     """
 
-    def __init__(self, sim: "Simulation", frames: int, cloud: Callable[[int], str]) -> None:
+    def __init__(self, sim: "Simulation", frames: int, cloud: Callable[[int], str],
+                 keep: int = 0) -> None:
         self._buffer = tempfile.SpooledTemporaryFile(max_size=_SPOOL_BYTES)
         out = _Hashing(self._buffer)  # type: ignore[arg-type]
-        _write(out, sim, frames, cloud)
+        _write(out, sim, frames, cloud, keep)
         self.sha256 = out.digest.hexdigest()
 
     def save(self, path: Path) -> None:

@@ -7,19 +7,25 @@ simulating thread needs between its compiled loops: a serial ``lidarsim dataset`
 has a lock of its own and runs on whatever core time the simulation leaves (0.78-0.94 of the
 same in-memory frames/s, docs/performance.md, "In a writer process of its own").
 
-The simulating process sends each frame's records (one ``send_bytes`` of the structured
-array) with its path, exporter and frame metadata over a pipe; the child writes it with the
-same :func:`~lidarsim_core.io.write.write_points_file` inside
-:func:`~lidarsim_core.base.atomic.deferred_sync` and sends back the frame's record and the
-paths to sync. The files are the same to the bit as the thread's.
+The simulating process sends each frame as its spool holds it: the columns of its pieces,
+not joined (the child joins them into records, :func:`joined_records`, ~30 µs a frame taken
+off the simulating thread). A frame is a header (one ``Connection.send``: its path, exporter,
+frame metadata, each piece's length and its columns' dtypes, the records' dtype when it
+changed) and the columns' bytes in one ``writev`` (:func:`_layout`). The child writes the frame
+with the same :func:`~lidarsim_core.io.write.write_points_file` inside
+:func:`~lidarsim_core.base.atomic.deferred_sync` and answers with the frame's record and the
+paths to sync, for up to :data:`REPLY_FRAMES` frames in one reply (each reply wakes the
+parent's receiving thread, whose Python takes turns with the simulation's at the
+interpreter lock). The files are the same to the bit as the thread's.
 
 The child is started once per process, on first use (:func:`writer_process`), as ``python -c``
 with this process's import path, in a process group of its own: the terminal's Ctrl-C reaches
 only the simulating process, which stops sending and waits for the frames sent (each written
 atomically or left as a ``.part`` file, as on a thread). It exits when the pipe closes: at the
-parent's exit, or when the parent dies. Until it is ready (the imports take ~0.35 s) and for
-what it cannot take (an exporter that is not built in, a frame spilled to disk), frames go
-to the writer thread.
+parent's exit, or when the parent dies (then without writing the frames still in the pipe).
+Until it is ready (the imports take ~0.35 s) and for what it cannot take (an exporter that is
+not built in, a frame spilled to disk, columns that are not plain bytes: :func:`sendable`),
+frames go to the writer thread.
 
 Environment variables
 ---------------------
@@ -33,19 +39,30 @@ from __future__ import annotations
 import atexit
 import json
 import os
+import select
 import subprocess
 import sys
 import threading
 from pathlib import Path
 from typing import Any, Callable
 
+import numpy as np
+
 from ..base import errors
 from ..base.limits import env_choice
 
 #: Values of ``LIDARSIM_WRITER``.
 MODES = ("process", "threads")
-#: Frames sent to the child and not yet written (the records of each are held until then).
-IN_FLIGHT = 3
+#: Frames sent to the child and not yet answered (the pipe holds their records; a frame
+#: larger than its room waits in ``writev``).
+IN_FLIGHT = 8
+#: Frames the child answers in one reply at most; it answers sooner when no frame comes
+#: within :data:`REPLY_WAIT_S` (one wake-up of the parent's receiving thread per reply, whose
+#: Python work takes turns with the simulation's at the interpreter lock).
+REPLY_FRAMES = 4
+#: Seconds the child waits for another frame before it answers those it wrote (at the end of
+#: a run the parent asks for the answers at once).
+REPLY_WAIT_S = 0.002
 #: Capacity asked for the pipe to the child (Linux): a few frames of ~1,000 points.
 PIPE_BYTES = 2 ** 20
 #: Seconds to wait for the child to finish the frames sent when a run stops or the process
@@ -53,7 +70,7 @@ PIPE_BYTES = 2 ** 20
 STOP_TIMEOUT_S = 60.0
 
 #: What the parent receives for a frame: ``(token, result or None, paths, error or None)``.
-Reply = Callable[[int, "dict[str, Any] | None", "list[Path]", "BaseException | None"], None]
+Reply = Callable[[int, "dict[str, Any] | None", "list[str]", "BaseException | None"], None]
 
 
 def mode() -> str:
@@ -102,6 +119,7 @@ class WriterProcess:
             except OSError:  # above /proc/sys/fs/pipe-max-size: the default, 64 KiB
                 pass
         self._tx = Connection(to_child_w, readable=False)
+        self._dtype: Any = None  # the records' dtype the child has (sent when it changes)
         self._rx = Connection(from_child_r, writable=False)
         self.pid = os.getpid()
         self.ready = threading.Event()
@@ -137,6 +155,13 @@ class WriterProcess:
     def wait_idle(self, timeout_s: float = STOP_TIMEOUT_S) -> None:
         """Wait until every frame sent has its reply (the child is killed after
         ``timeout_s``)."""
+        with self._lock:
+            answer_now = bool(self._in_flight) and self.broken is None
+        if answer_now:  # no more frames are coming: the child need not wait for them
+            try:
+                self._tx.send(None)
+            except OSError:  # the child is gone: its receiver says so
+                pass
         with self._idle:
             done = self._idle.wait_for(lambda: not self._in_flight, timeout_s)
         if not done:
@@ -153,19 +178,25 @@ class WriterProcess:
             return len(self._in_flight) < IN_FLIGHT and self.broken is None
 
     def send(self, token: int, path: str, exporter: str, options: dict[str, Any],
-             frame: dict[str, Any], records: Any) -> None:
-        """Send a frame to write (``records``: its structured array). The pipe holds
-        :data:`PIPE_BYTES`, so the frames in flight are sent without waiting for the child
-        unless they are larger."""
+             frame: dict[str, Any], dtype: Any, parts: list[dict[str, Any]]) -> None:
+        """Send a frame to write: ``parts``, the columns of its chunks (each C-contiguous,
+        of a plain dtype: :func:`sendable`), which the child joins into records of the
+        structured ``dtype`` as :meth:`~lidarsim_core.io.points.PointSpool.records` does.
+        The pipe holds :data:`PIPE_BYTES`, so the frames in flight are sent without
+        waiting for the child unless they are larger."""
         with self._lock:
             if self.broken is not None:
                 raise self.broken
             self._in_flight[token] = path
             self.sent += 1
         try:
-            self._tx.send((token, path, exporter, options, frame, records.dtype,
-                           len(records)))
-            self._tx.send_bytes(memoryview(records).cast("B"))
+            changed = self._dtype is None or self._dtype != dtype  # a run's spools share one
+            self._dtype = None  # until the child has it
+            layout, columns = _layout(parts)
+            self._tx.send((token, path, exporter, options, frame, dtype if changed else None,
+                           layout))
+            _write_all(self._tx.fileno(), columns)
+            self._dtype = dtype
         except BaseException as exc:  # the child is gone, or a frame half-sent: unusable
             code = self._child.poll()
             self._child.kill()
@@ -191,16 +222,21 @@ class WriterProcess:
             if message[0] == "ready":
                 self.ready.set()
                 continue
-            _, token, result, paths, error = message
             with self._lock:
-                path = self._in_flight.get(token)
                 reply = self._reply
-            exc = None if error is None else _rebuilt(error, path)
-            if reply is not None:
-                reply(token, result, [Path(p) for p in paths], exc)
-            with self._idle:
+                named = [(frame, self._in_flight.get(frame[0])) for frame in message[1]]
+            for (token, result, paths, error), path in named:
+                exc = None if error is None else _rebuilt(error, path)
+                if reply is not None:
+                    reply(token, result, paths, exc)
+            self._in_flight_done([frame[0] for frame in message[1]])
+
+    def _in_flight_done(self, tokens: list[int]) -> None:
+        """The frames ``tokens`` are answered: room for as many more."""
+        with self._idle:
+            for token in tokens:
                 self._in_flight.pop(token, None)
-                self._idle.notify_all()
+            self._idle.notify_all()
 
     def _fail(self, exc: BaseException) -> None:
         """Mark the child unusable; frames still in flight get ``exc`` as their reply."""
@@ -248,6 +284,74 @@ def _rebuilt(error: tuple[str, str, str | None, str | None], path: str | None
     return errors.OutputError(f"writing the frame failed ({name}: {message})", source=path)
 
 
+#: Kinds of dtype whose columns go to the child as bytes (booleans, integers, floating and
+#: complex numbers, fixed-size strings: what a buffer exports and ``dtype.str`` names).
+_PLAIN_KINDS = frozenset("biufcSU")
+
+
+def sendable(parts: list[dict[str, Any]]) -> bool:
+    """Whether :meth:`WriterProcess.send` can send these chunks' columns as bytes: every one
+    one-dimensional, C-contiguous and of a plain dtype (:data:`_PLAIN_KINDS`); other frames
+    are written on a thread, as they always were."""
+    return all(isinstance(values, np.ndarray) and values.ndim == 1 and
+               values.flags.c_contiguous and values.dtype.kind in _PLAIN_KINDS
+               for part in parts for values in part.values())
+
+
+def _layout(parts: list[dict[str, Any]]) -> tuple[list[tuple[int, list[str]]], list[Any]]:
+    """Each chunk's length and its columns' dtypes, and the columns' bytes in that order
+    (not copied): what follows a frame's header down the pipe."""
+    layout = [(len(next(iter(part.values()))), [v.dtype.str for v in part.values()])
+              for part in parts]
+    return layout, [memoryview(values).cast("B") for part in parts for values in part.values()]
+
+
+def joined_records(dtype: Any, layout: list[tuple[int, list[str]]], data: Any) -> Any:
+    """The records of structured ``dtype`` that the columns in ``data`` make, chunk after
+    chunk as ``layout`` lists them (each chunk's length, its columns' dtypes in the order of
+    ``dtype``'s fields): each column converted as an assignment converts it, what
+    :meth:`~lidarsim_core.io.points.PointSpool.records` does with the chunks themselves."""
+    records = np.empty(sum(n for n, _ in layout), dtype=dtype)
+    start = offset = 0
+    for n, kinds in layout:
+        for name, kind in zip(dtype.names, kinds):
+            column = np.frombuffer(data, dtype=np.dtype(kind), count=n, offset=offset)
+            records[name][start:start + n] = column
+            offset += column.nbytes
+        start += n
+    return records
+
+
+def _write_all(fd: int, buffers: list[Any]) -> None:
+    """Write ``buffers`` to ``fd`` in order, all of them (a pipe may take part of a large
+    write)."""
+    views = [memoryview(b).cast("B") for b in buffers]
+    while views:
+        written = os.writev(fd, views)
+        while views and written >= views[0].nbytes:
+            written -= views[0].nbytes
+            views.pop(0)
+        if views and written:
+            views[0] = views[0][written:]
+
+
+def _read_exact(fd: int, size: int) -> bytearray | None:
+    """``size`` bytes from ``fd``, or ``None`` at the end of the pipe before them."""
+    buffer = bytearray(size)
+    view, got = memoryview(buffer), 0
+    while got < size:
+        count = os.readv(fd, [view[got:]])
+        if count == 0:
+            return None
+        got += count
+    return buffer
+
+
+def _columns_size(layout: list[tuple[int, list[str]]]) -> int:
+    """Bytes of the columns ``layout`` lists."""
+    return sum(n * np.dtype(kind).itemsize for n, kinds in layout for kind in kinds)
+
+
 _process: WriterProcess | None = None
 _process_lock = threading.Lock()
 
@@ -277,7 +381,6 @@ def serve(read_fd: int, write_fd: int) -> None:
 
     rx = Connection(read_fd, writable=False)
     tx = Connection(write_fd, readable=False)
-    import numpy as np
 
     from ..base.atomic import deferred_sync
     from ..io.points import PointSpool
@@ -286,16 +389,36 @@ def serve(read_fd: int, write_fd: int) -> None:
     from ..records.pointcloud import FrameInfo
     from .frames import make_parent
 
+    parent = os.getppid()
     tx.send(("ready",))
+    dtype = None  # the records' dtype, as last sent
+    answers: list[tuple[Any, ...]] = []  # frames written and not yet answered
     while True:
+        if answers and (len(answers) >= REPLY_FRAMES or answers[-1][3] is not None or
+                        not select.select([read_fd], [], [], REPLY_WAIT_S)[0]):
+            tx.send(("frames", answers))  # an error is answered at once
+            answers = []
         try:
-            token, path, exporter, options, frame, dtype, count = rx.recv()
-            data = rx.recv_bytes()
-        except EOFError:
+            header = rx.recv()
+        except EOFError:  # the parent closed the pipe, or died
+            header = ()
+        if header is None:  # no more frames for now: answer those written
+            if answers:
+                tx.send(("frames", answers))
+                answers = []
+            continue
+        data = _read_exact(read_fd, _columns_size(header[6])) if header else None
+        if data is None:
+            if answers:
+                tx.send(("frames", answers))
             return
+        token, path, exporter, options, frame, sent, layout = header
+        dtype = dtype if sent is None else sent
+        if os.getppid() != parent:  # killed (SIGKILL): its frames in the pipe stay unwritten,
+            return  # as a thread's would, and a rerun does not meet this process writing
         paths: list[Path] = []
         try:
-            records = np.frombuffer(data, dtype=dtype, count=count)
+            records = joined_records(dtype, layout, data)
             spool = PointSpool.from_records(FrameInfo.from_dict(frame), records)
             target = Path(path)
             make_parent(target)
@@ -303,9 +426,9 @@ def serve(read_fd: int, write_fd: int) -> None:
                 record = write_points_file(spool, target,
                                            exporter=exporter_named(exporter, options))
             result = {key: record[key] for key in ("file", "points", "bytes", "sha256")}
-            tx.send(("frame", token, result, [os.fspath(p) for p in paths], None))
+            answers.append((token, result, [os.fspath(p) for p in paths], None))
         except Exception as exc:  # noqa: BLE001 - every error goes back to the parent
             described = (type(exc).__name__, getattr(exc, "message", str(exc)),
                          getattr(exc, "source", None), getattr(exc, "field", None))
-            tx.send(("frame", token, None, [], described))
+            answers.append((token, None, [], described))
 

@@ -246,6 +246,20 @@ class PointSpool(PointSource):
             block = np.frombuffer(self._file.read(n * itemsize), dtype=self._dtype)
             yield {name: np.ascontiguousarray(block[name]) for name in names}
 
+    @property
+    def record_dtype(self) -> np.dtype | None:
+        """The structured dtype of the records (:attr:`fields`), ``None`` before the first
+        chunk."""
+        return self._dtype
+
+    def parts(self) -> list[dict[str, np.ndarray]] | None:
+        """The chunks appended (their columns in :attr:`fields` order, each as it was
+        given: the dtype may differ from the field's), while they are held in memory; else
+        ``None``. For a writer elsewhere that joins them itself; not to be modified."""
+        if self._file is not None or self._dtype is None:
+            return None
+        return list(self._parts)
+
     def records(self) -> np.ndarray | None:
         if self._file is not None or self._dtype is None:
             return None

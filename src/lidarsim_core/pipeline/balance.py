@@ -9,8 +9,12 @@ dataset benchmark's frames of 10,000 pulses 0.96 ms on one thread and 1.39 ms on
 the tumbling rose's 100,000 pulses take 4.0 ms on one and 2.5 on two. :class:`PiecePlan`
 measures the first spans each way in turn, keeps the seconds per pulse of the last spans run
 each way (the least of the last :data:`SAMPLES`), runs the next span the faster way (on the
-calling thread no pool thread has to wake), and tries the other way every
-:data:`PROBE_EVERY` spans so that the choice follows a scene that grows or shrinks.
+calling thread no pool thread has to wake), and tries the other way now and then so that the
+choice follows a scene that grows or shrinks: :data:`PROBE_EVERY` spans after it chose, then
+twice as many after each try that left the choice as it was, up to :data:`PROBE_MOST` (a try
+costs the difference of the two ways: in a serial dataset of the tumbling Risley scene the
+threads took 1.9-2.3 ms a frame against 0.9 on the calling thread, and a try every 16 frames
+cost 5 % of the run).
 
 **Where to cut.** A piece's cost is not proportional to its pulses. Culling drops most pulses
 that miss, and a hit costs the cast three to five times a miss: the two halves of a 256 × 256
@@ -36,8 +40,11 @@ MIN_SHARE = 0.5
 #: Chunks whose pieces together took less than this (s) leave the cuts alone: their times are
 #: mostly the threads' start and timer noise.
 MIN_MEASURED_S = 2e-4
-#: Spans between two tries of the way that is not the faster one.
+#: Spans between the choice of a way and the first try of the other.
 PROBE_EVERY = 16
+#: Most spans between two tries of the way that is not the faster one (the spacing doubles
+#: from :data:`PROBE_EVERY` with every try that leaves the choice as it was).
+PROBE_MOST = 256
 #: Spans measured each way before the faster is chosen.
 EXPLORE = 2
 #: Spans a plan runs before it has chosen: one that fills the caches, then :data:`EXPLORE`
@@ -68,19 +75,30 @@ class PiecePlan:
                                                  False: deque(maxlen=SAMPLES)}
         self._spans = 0
         self._warm = False  # the first span builds caches: its time is not the way's
+        self._faster: bool | None = None  # the way chosen
+        self._spacing = PROBE_EVERY  # spans from one try of the other way to the next
+        self._probe_at = 0  # the span that tries the other way
 
     def threaded(self) -> bool:
         """Whether the next span runs in one piece per thread (else on the calling thread):
         each way in turn until both were measured :data:`EXPLORE` times (after a first span
-        on the threads, which fills the caches), then the faster, and the other every
-        :data:`PROBE_EVERY` spans."""
+        on the threads, which fills the caches), then the faster, and the other
+        :data:`PROBE_EVERY` spans after the choice, then at spacings that double up to
+        :data:`PROBE_MOST` while the tries leave the choice as it was."""
         with _lock:
             threads, caller = self._costs[True], self._costs[False]
             if min(len(threads), len(caller)) < EXPLORE:
                 return len(threads) <= len(caller)
             self._spans += 1
             faster = min(threads) <= min(caller)
-            return faster if self._spans % PROBE_EVERY else not faster
+            if faster != self._faster:  # chosen now, or turned by the last try
+                self._faster, self._spacing = faster, PROBE_EVERY
+                self._probe_at = self._spans + PROBE_EVERY
+            if self._spans < self._probe_at:
+                return faster
+            self._probe_at = self._spans + self._spacing
+            self._spacing = min(2 * self._spacing, PROBE_MOST)
+            return not faster
 
     def timed(self, threaded: bool, seconds: float, pulses: int) -> None:
         """Record a span of ``pulses`` run in ``seconds`` the way ``threaded`` says (from its
