@@ -158,8 +158,9 @@ class WriterProcess:
         with self._lock:
             answer_now = bool(self._in_flight) and self.broken is None
         if answer_now:  # no more frames are coming: the child need not wait for them
-            try:
-                self._tx.send(None)
+            try:  # (never blocking: a child that reads nothing is timed out below)
+                if select.select([], [self._tx.fileno()], [], 0)[1]:
+                    self._tx.send(None)
             except OSError:  # the child is gone: its receiver says so
                 pass
         with self._idle:
