@@ -13,8 +13,8 @@ calling thread no pool thread has to wake), and tries the other way now and then
 choice follows a scene that grows or shrinks: :data:`PROBE_EVERY` spans after it chose, then
 twice as many after each try that left the choice as it was, up to :data:`PROBE_MOST` (a try
 costs the difference of the two ways: in a serial dataset of the tumbling Risley scene the
-threads took 1.9-2.3 ms a frame against 0.9 on the calling thread, and a try every 16 frames
-cost 5 % of the run).
+threads took 1.5-2.3 ms a frame against 0.76-0.9 on the calling thread, and a try every 16
+frames cost ~5 % of the run).
 
 **Where to cut.** A piece's cost is not proportional to its pulses. Culling drops most pulses
 that miss, and a hit costs the cast three to five times a miss: the two halves of a 256 × 256
