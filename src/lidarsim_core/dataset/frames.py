@@ -77,7 +77,11 @@ def _cache_key(source: str | None, scenario_json: str) -> str:
 def keep_simulation(source: str | None, scenario_json: str, sim: Any) -> None:
     """Let the jobs of this scenario (``scenario_json`` read from ``source``) run in ``sim``,
     built from them already (a serial run's sequence: one build instead of two)."""
-    key = _cache_key(source, scenario_json)
+    _remember(_cache_key(source, scenario_json), sim)
+
+
+def _remember(key: str, sim: Any) -> None:
+    """Keep ``sim`` under ``key``, the most recent of at most :data:`CACHE_SIZE`."""
     _simulations[key] = sim
     _simulations.move_to_end(key)
     while len(_simulations) > CACHE_SIZE:
@@ -97,9 +101,7 @@ def _simulation(job: FrameJob) -> Any:
     scenario = scenario_from_dict(json.loads(job.scenario_json), source=job.source)
     sim = Simulation(scenario)
     _stats["simulations_built"] += 1
-    _simulations[key] = sim
-    while len(_simulations) > CACHE_SIZE:
-        _simulations.popitem(last=False)
+    _remember(key, sim)
     return sim
 
 
