@@ -164,6 +164,29 @@ def test_the_child_joins_the_chunks_as_the_spool_does():
     assert joined["intensity"].dtype == np.float32 and joined["target"].dtype == np.int16
 
 
+def test_a_frame_header_and_its_columns_are_read_as_sent():
+    """The header goes down the pipe in the frame's one ``writev``, framed as
+    ``Connection.send`` frames it: a real connection's ``recv`` reads exactly the header,
+    and the columns' bytes follow it untouched (a large header and an empty message too)."""
+    import os
+    from multiprocessing.connection import Connection
+
+    import numpy as np
+
+    read_fd, write_fd = os.pipe()
+    rx = Connection(read_fd, writable=False)
+    header = (3, "frames/f.ply", "ply", {"binary": True}, _frame_dict(), None, [(2, ["<f8"])])
+    large = ("x" * 30_000, list(range(2_000)))  # beyond Connection's 16 KiB single write
+    columns = [np.arange(2.0)]
+    for message in (header, large, None):
+        writer_module._write_all(write_fd, [*writer_module._framed(message),
+                                            *[memoryview(c).cast("B") for c in columns]])
+        assert rx.recv() == message
+        assert bytes(writer_module._read_exact(read_fd, 16)) == columns[0].tobytes()
+    os.close(write_fd)
+    rx.close()
+
+
 def test_only_plain_columns_are_sent_as_bytes():
     """Frames the child could not rebuild from bytes stay with the writer thread."""
     import numpy as np

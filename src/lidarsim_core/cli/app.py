@@ -25,7 +25,11 @@ schema_app = typer.Typer(no_args_is_help=True, help="Print JSON schemas of the i
 app.add_typer(schema_app, name="schema")
 
 
-STATE = {"debug": False}
+#: ``debug``: ``--debug`` was given; ``own_process``: the app runs as the ``lidarsim``
+#: process itself (the console script or ``python -m lidarsim_core``:
+#: :func:`lidarsim_core.cli.main.main` without arguments), not called from Python with its
+#: arguments, so that it may change what is process-wide (:func:`.progress.prepare_long_run`).
+STATE = {"debug": False, "own_process": False}
 
 
 def _print_version(value: bool) -> None:

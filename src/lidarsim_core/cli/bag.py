@@ -28,12 +28,12 @@ def simulate_to_bag(scenario: "Scenario", frames: Sequence[int], out: Path, *,
     from ..dataset.progress import FrameProgress
     from ..io.rosbag import check_bag_output, require_rosbags, write_bag
     from ..pipeline.simulation import Simulation
-    from .progress import FrameBar, warm_kernels
+    from .progress import FrameBar, prepare_long_run
 
     require_rosbags()  # missing extra 'ros': say so before simulating
     check_bag_output(out, overwrite=overwrite)
     sim = Simulation(scenario)
-    warm_kernels()  # a bar while a first run on this machine compiles them
+    prepare_long_run()  # a bar while a first run on this machine compiles the kernels
     from ..base.outputs import check_not_input
     from ..io.rosbag import check_bag_frames
 

@@ -48,13 +48,13 @@ def _dataset(source: Path, out: Path, frames: int | None, fmt: str | None,
     from ..base.errors import ConfigError
     from ..base.limits import check_frames
     from ..dataset import generate_dataset
-    from .progress import FrameBar, warm_kernels
+    from .progress import FrameBar, prepare_long_run
 
     if workers is not None and scheduler is not None:
         raise ConfigError("give --workers or --scheduler, not both", field="workers")
     if frames is not None:
         check_frames(frames, source=None, field="--frames")
-    warm_kernels()  # a bar while a first run on this machine compiles them
+    prepare_long_run()  # a bar while a first run on this machine compiles the kernels
     result = generate_dataset(source, out, frames=frames, format=fmt, workers=workers,
                               scheduler=scheduler, quiet=quiet, verify=verify,
                               livox=livox, display=FrameBar(), sequences=sequences)

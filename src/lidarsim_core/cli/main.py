@@ -15,7 +15,7 @@ from .output import markup_safe as escape
 from . import demo, simulate, listings  # noqa: F401
 from . import patterns, poses, bench, report, dataset, mesh, view, evaluate  # noqa: F401
 # isort: on
-from .app import app, plain_help_when_piped
+from .app import STATE, app, plain_help_when_piped
 from .errors import fail_code, one_line
 from .output import console
 
@@ -31,6 +31,9 @@ def main(argv: list[str] | None = None) -> None:
     import warnings
 
     warnings.showwarning = _show_warning
+    # the console script and ``python -m lidarsim_core`` give no arguments: the process is
+    # the command's own (a caller passing its arguments keeps its process as it is)
+    STATE["own_process"] = argv is None
     sys.exit(_run_app(argv))
 
 

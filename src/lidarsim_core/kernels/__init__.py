@@ -104,6 +104,7 @@ def _warm_up_calls() -> list[tuple[str, Callable[[], Any], Any]]:
     from .philox import ray_uniforms
     from .poses import chain_matrices, look_at_matrices
     from .raycast import embree_rays, refine_hits
+    from .reflectance import reflectance_sum, reflectance_terms
     from .risley import risley_directions
     from .rose import rose_directions
     from .rotation import rotate_two_angles
@@ -165,6 +166,11 @@ def _warm_up_calls() -> list[tuple[str, Callable[[], Any], Any]]:
         ("look-at", lambda: look_at_matrices(one, np.zeros(3), np.array([0.0, 0.0, 1.0])),
          look_at_matrices),
         ("normals", lambda: normals(np.zeros(2, dtype=np.uint64), index, 2), normals),
+        ("reflectance", lambda: reflectance_terms(np.zeros(1, dtype=np.int16), two[:1], two,
+                                                  two, two, two), reflectance_terms),
+        ("reflectance sum", lambda: reflectance_sum(
+            two[:1].copy(), two[:1], np.zeros(1, dtype=np.int16), index, two[:1], two, two,
+            index, two[:1], two, two), reflectance_sum),
         ("fused ray stage", lambda: ray_stage(one, index, np.zeros((1, 2), dtype=np.uint64),
                                               np.ones(1), np.eye(3)[None], np.empty((1, 3)),
                                               np.empty((1, 3))), ray_stage),

@@ -35,6 +35,7 @@ from typing import Any, Mapping
 import numpy as np
 from pydantic import BaseModel, ConfigDict, Field
 
+from .. import kernels
 from ..base.errors import ConfigError
 from ..base.validation import validate_model
 
@@ -178,6 +179,8 @@ class MaterialTable:
     def effective(self, part: np.ndarray, cos_incidence: np.ndarray) -> np.ndarray:
         """ρ_eff for hits on ``part`` (scene-wide indices) at incidence cosines
         ``cos_incidence`` (|cos|, 0-1)."""
+        if kernels.enabled():  # the same bits in two compiled passes (kernels.reflectance)
+            return self._effective_compiled(part, cos_incidence)
         # per hit: the tables' rows gathered once, the arithmetic on the lit hits in place
         # (each operation is the same IEEE operation on the same values as written out in
         # the formula, so the bits do not depend on it; NumPy's exp and arccos keep their
@@ -212,6 +215,22 @@ class MaterialTable:
             if on.any():
                 theta = np.arccos(c[on])
                 out[on] += gain[on] * np.maximum(0.0, 1.0 - theta / self.acceptance[part][on])
+        return out
+
+    def _effective_compiled(self, part: np.ndarray, cos_incidence: np.ndarray) -> np.ndarray:
+        """:meth:`effective` through :mod:`lidarsim_core.kernels.reflectance`: the gathers
+        and the arithmetic compiled, ``exp`` and ``arccos`` NumPy's."""
+        from ..kernels.reflectance import reflectance_sum, reflectance_terms
+
+        part = np.ascontiguousarray(part)
+        if part.dtype.kind not in "iu":
+            part = part.astype(np.int64)
+        out, c, lit, exponent, on, c_on = reflectance_terms(
+            part, np.ascontiguousarray(cos_incidence, dtype=np.float64), self.diffuse,
+            self.specular, self.slope2, self.retro)
+        if len(lit) or len(on):
+            reflectance_sum(out, c, part, lit, np.exp(exponent), self.slope2, self.specular,
+                            on, np.arccos(c_on), self.retro, self.acceptance)
         return out
 
 
