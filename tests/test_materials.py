@@ -99,6 +99,18 @@ def test_the_compiled_table_gives_the_numpy_bits(monkeypatch):
     lambertian = MaterialTable.from_materials([MATERIAL_LIBRARY["lambertian_10"]])
     assert lambertian.effective(np.zeros(3, dtype=np.int16), np.array([1.0, 0.5, 0.0])) \
         .tolist() == [0.1, 0.05, 0.0]
+    # a scalar and a grid of cosines keep their shapes, with each element's value (a scalar
+    # failed on the specular lobe before)
+    glossy = table.materials[3]
+    grid = np.linspace(0.0, 1.0, 12).reshape(3, 4)
+    flat = glossy.effective_reflectivity(grid.ravel())
+    for kernels_mode in ("numpy", "numba"):
+        monkeypatch.setenv("LIDARSIM_KERNELS", kernels_mode)
+        assert glossy.effective_reflectivity(grid).shape == (3, 4)
+        assert glossy.effective_reflectivity(grid).ravel().tolist() == flat.tolist()
+        single = glossy.effective_reflectivity(0.5)
+        assert np.shape(single) == () and float(single) == \
+            glossy.effective_reflectivity(np.array([0.5]))[0]
 
 
 def test_every_library_material_states_its_source():

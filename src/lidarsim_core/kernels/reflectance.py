@@ -2,8 +2,9 @@
 and ``arccos`` (:meth:`lidarsim_core.scene.materials.MaterialTable.effective` calls them).
 
 The NumPy reference makes about twenty-five array operations on a piece's hits, each holding
-the GIL for its set-up: with two threads, the pieces waited for each other there (a fifth of
-the time the GIL was held in a frame of the tumbling benchmark scene, sampled by py-spy).
+the GIL for its set-up, where the pieces of two threads wait for each other (py-spy's samples
+of the held GIL put a fifth of a two-thread tumbling frame's there; replaced, the frame took
+0.98–0.99 × its time, docs/performance.md, "What the second thread loses, taken apart").
 Here the gathers, the masks and the arithmetic are two loops, and the two transcendental
 functions stay NumPy's own calls on the arrays that need them, so the bits are NumPy's on
 every CPU (NumPy has its own SIMD ``exp`` where the CPU has AVX-512, and the C library's

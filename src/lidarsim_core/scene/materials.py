@@ -179,14 +179,22 @@ class MaterialTable:
     def effective(self, part: np.ndarray, cos_incidence: np.ndarray) -> np.ndarray:
         """ρ_eff for hits on ``part`` (scene-wide indices) at incidence cosines
         ``cos_incidence`` (|cos|, 0-1)."""
+        part = np.asarray(part)
+        cos_incidence = np.asarray(cos_incidence, dtype=np.float64)
+        if part.ndim != 1 or cos_incidence.shape != part.shape:
+            # a scalar or a grid: computed flat (element by element, the same bits), returned
+            # in its shape
+            shape = np.broadcast_shapes(part.shape, cos_incidence.shape)
+            flat = self.effective(np.broadcast_to(part, shape).ravel(),
+                                  np.broadcast_to(cos_incidence, shape).ravel())
+            return flat.reshape(shape)
         if kernels.enabled():  # the same bits in two compiled passes (kernels.reflectance)
             return self._effective_compiled(part, cos_incidence)
         # per hit: the tables' rows gathered once, the arithmetic on the lit hits in place
         # (each operation is the same IEEE operation on the same values as written out in
         # the formula, so the bits do not depend on it; NumPy's exp and arccos keep their
         # inputs' layout)
-        part = np.asarray(part)
-        c = np.clip(np.asarray(cos_incidence, dtype=np.float64), 0.0, 1.0)
+        c = np.clip(cos_incidence, 0.0, 1.0)
         out = np.take(self.diffuse, part)
         out *= c
         if self.specular.any():
