@@ -181,6 +181,7 @@ def test_suite_targets_and_dataset_throughput():
     assert data["in_memory_frames_per_s"] > 0 and data["dataset_frames_per_s"] > 0
     assert math.isclose(data["dataset_over_in_memory"],
                         data["dataset_frames_per_s"] / data["in_memory_frames_per_s"])
+    assert 0 < data["file_create_us"] < 1e6  # what the file system charges for a new file
 
 
 def test_startup_is_measured_in_a_new_process_that_compiles_nothing():

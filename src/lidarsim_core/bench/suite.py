@@ -29,6 +29,7 @@ simulating the same frames in memory.
 
 from __future__ import annotations
 
+import os
 import tempfile
 import time
 from pathlib import Path
@@ -416,6 +417,20 @@ def run_suite(*, quick: bool = False, scenes: list[str] | None = None) -> dict[s
             "startup": bench_startup(rounds=1 if quick else 3)}
 
 
+def _file_create_us(folder: Path, files: int = 64) -> float:
+    """The median time (µs) to create an empty file in a new ``folder`` (``O_EXCL``, then
+    closed): what the file system charges for each of a dataset frame's two files, which
+    bounds the writer process when it is slow (docs/performance.md, "One write a frame, the
+    collector, and the file system"). The files stay until the folder goes."""
+    folder.mkdir()
+    times = []
+    for i in range(files):
+        start = time.perf_counter()
+        os.close(os.open(folder / f"f{i}", os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o644))
+        times.append(time.perf_counter() - start)
+    return round(1e6 * float(np.median(times)), 1)
+
+
 def bench_dataset(*, frames: int = 200, rounds: int = 3) -> dict[str, Any]:
     """Frames per second of a tumbling sequence (:data:`SUITE`'s ``tumbling-risley``, 0.1 s
     frames at 10 Hz): simulated in memory (``Simulation.run_frame`` of every frame) and
@@ -423,7 +438,8 @@ def bench_dataset(*, frames: int = 200, rounds: int = 3) -> dict[str, Any]:
     manifest; a fresh directory each round); best of ``rounds`` interleaved runs, and the
     least CPU time (all threads, user and system) per frame of each, the dataset's writer
     process apart (``writer_process``, :mod:`lidarsim_core.dataset.writer_process`; in 10 ms
-    ticks).
+    ticks), and ``file_create_us``, what creating a file costs where the rounds write
+    (:func:`_file_create_us`).
 
     The rounds' directories are removed after the last round, not between rounds: removing
     them is no part of writing a dataset, and on a file system that checks every new file
@@ -462,6 +478,7 @@ def bench_dataset(*, frames: int = 200, rounds: int = 3) -> dict[str, Any]:
             cpu["writer_process"].append(child_end - (child_start or 0.0))
 
     try:
+        create_us = _file_create_us(folder / "probe")
         best, cores = interleaved_best({"in_memory": in_memory, "dataset": dataset}, rounds)
     finally:
         shutil.rmtree(folder, ignore_errors=True)
@@ -470,7 +487,8 @@ def bench_dataset(*, frames: int = 200, rounds: int = 3) -> dict[str, Any]:
               "dataset_frames_per_s": frames / best["dataset"],
               "cores_used": {key: round(value, 2) for key, value in cores.items()},
               "cpu_ms_per_frame": {key: round(1e3 * min(values[1:]) / frames, 3)
-                                   for key, values in cpu.items() if values[1:]}}
+                                   for key, values in cpu.items() if values[1:]},
+              "file_create_us": create_us}
     result["dataset_over_in_memory"] = \
         result["dataset_frames_per_s"] / result["in_memory_frames_per_s"]
     return result

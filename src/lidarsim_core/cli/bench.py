@@ -146,6 +146,9 @@ def _print_suite(console: Any, suite: dict[str, Any], threads: int) -> None:
                           f"{cpu_ms['dataset']:.2f} ms"
                           + ("." if child is None else f" + {child:.2f} ms in the writer "
                              "process."))
+        if data.get("file_create_us") is not None:
+            console.print(f"  Creating a file where it wrote: {data['file_create_us']:.0f} µs "
+                          "(two a frame).")
     start = suite.get("startup")
     if start:
         console.print(f"A new process, from import to the demo's first frame: "
