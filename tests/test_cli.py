@@ -169,7 +169,7 @@ def test_sensors_plugins_and_schema_listings():
 def test_a_long_command_freezes_what_its_own_process_made(tmp_path, monkeypatch):
     """``lidarsim dataset`` (and ``bag``) move the objects of the imports and the loaded
     kernels out of the cyclic garbage collector's sight before the frames (a full collection
-    walked them all: 60-140 ms, two or three times in 1,000 frames), but only as the
+    walked them all: 35-140 ms, two or three times in 1,000 frames), but only as the
     ``lidarsim`` process itself: an app called from Python leaves its caller's process as it
     is."""
     import gc

@@ -179,8 +179,7 @@ def test_a_frame_header_and_its_columns_are_read_as_sent():
     large = ("x" * 30_000, list(range(2_000)))  # beyond Connection's 16 KiB single write
     columns = [np.arange(2.0)]
     for message in (header, large, None):
-        writer_module._write_all(write_fd, [*writer_module._framed(message),
-                                            *[memoryview(c).cast("B") for c in columns]])
+        writer_module._write_all(write_fd, [*writer_module._framed(message), *columns])
         assert rx.recv() == message
         assert bytes(writer_module._read_exact(read_fd, 16)) == columns[0].tobytes()
     os.close(write_fd)

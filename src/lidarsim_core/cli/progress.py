@@ -149,8 +149,8 @@ def prepare_long_run() -> None:
     app runs as the ``lidarsim`` process itself, every object made so far frozen out of the
     cyclic garbage collector's sight (:func:`gc.freeze`; they are still freed when their
     last reference goes). A full collection otherwise walks every object of the imports and
-    the loaded kernels: 60–140 ms each time, two or three times in a 1,000-frame dataset
-    (~7 % of its run); with them frozen, one of ~17 ms (docs/performance.md, "Datasets")."""
+    the loaded kernels: 35–140 ms each time, two or three times in a 1,000-frame dataset
+    (4–9 % of its run); with them frozen, one of 16–20 ms (docs/performance.md, "Datasets")."""
     import gc
 
     from .. import kernels

@@ -135,13 +135,13 @@ class _FrameWriter:
             assert record is not None
             self._finished[number] = (frame_result(job, info, record), paths)
 
-    def _to_process(self, job: FrameJob, spool: Any) -> Any:
+    def _to_process(self, job: FrameJob, parts: list[dict[str, Any]] | None) -> Any:
         """The writer process if it takes this frame now (ready, a built-in exporter, the
-        chunks in memory and of plain columns: :func:`.writer_process.sendable`), else
-        ``None``."""
+        chunks ``parts`` in memory and of plain columns: :func:`.writer_process.sendable`),
+        else ``None``."""
         process = self._process
-        parts = None if process is None or not process.ready.is_set() else spool.parts()
-        if parts is None or not sendable(parts):
+        if process is None or not process.ready.is_set() or parts is None or \
+                not sendable(parts):
             return None
         exporter = (job.exporter, job.exporter_options)
         if self._exporter is None or self._exporter[0] != exporter:  # jobs share theirs
@@ -203,11 +203,12 @@ class _FrameWriter:
     def put(self, job: FrameJob, spool: Any, info: Any) -> None:
         """Queue a simulated frame (after re-raising an error of a writer)."""
         self._raise()
-        process = self._to_process(job, spool)
+        parts = spool.parts() if self._process is not None else None
+        process = self._to_process(job, parts)
         if process is not None:
             with self._lock:
                 self._sent[self._submitted] = (job, info)
-            dtype, parts = spool.record_dtype, spool.parts()
+            dtype = spool.record_dtype
             spool.close()  # the chunks stay alive until they are sent
             process.send(self._submitted, job.path, job.exporter, job.exporter_options,
                          info.to_dict(), dtype, parts)

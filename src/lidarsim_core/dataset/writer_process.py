@@ -303,11 +303,12 @@ def sendable(parts: list[dict[str, Any]]) -> bool:
 
 
 def _layout(parts: list[dict[str, Any]]) -> tuple[list[tuple[int, list[str]]], list[Any]]:
-    """Each chunk's length and its columns' dtypes, and the columns' bytes in that order
-    (not copied): what follows a frame's header down the pipe."""
+    """Each chunk's length and its columns' dtypes, and the columns in that order (not
+    copied; :func:`_write_all` sends their bytes): what follows a frame's header down the
+    pipe."""
     layout = [(len(next(iter(part.values()))), [v.dtype.str for v in part.values()])
               for part in parts]
-    return layout, [memoryview(values).cast("B") for part in parts for values in part.values()]
+    return layout, [values for part in parts for values in part.values()]
 
 
 def joined_records(dtype: Any, layout: list[tuple[int, list[str]]], data: Any) -> Any:
