@@ -1,9 +1,17 @@
 """The reference outputs whose bytes must not move: their SHA-256, recomputed and compared by
 ``tests/test_golden_outputs.py``.
 
-Run as a script to print the hashes of the current code (``python tests/golden_outputs.py``);
-``tests/data/golden_hashes.json`` holds those of the commit before the package-layout change
-(issue 21), so any change that moves a bit of these outputs says so by failing that test.
+Run as a script to print the hashes of the current code and the class of CPU they belong to
+(``python tests/golden_outputs.py``); ``tests/data/golden_hashes.json`` holds, per class, those
+of the commit before the package-layout change (issue 21), so any change that moves a bit of
+these outputs says so by failing that test.
+
+The class (:func:`bits_class`): NumPy picks at run time, per CPU, the SIMD build of its float64
+functions, and its AVX-512 builds (``X86_V4``) of ``arctan2``, ``arccos``, ``exp`` and the others
+round some results differently from its AVX2 builds and from the C library's. The outputs go
+through them (the record's azimuth, elevation and incidence angle, the materials' intensity),
+so the same code writes other last bits on an AVX-512 CPU than on an AVX2 one, and each class
+has its own reference.
 """
 
 from __future__ import annotations
@@ -11,6 +19,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import platform
 import subprocess
 import sys
 import tempfile
@@ -18,6 +27,26 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
 TUMBLING = ROOT / "examples" / "scenarios" / "envisat_tumbling_hold.yaml"
+#: NumPy's float64 functions that the outputs go through and that NumPy builds for several
+#: instruction sets, choosing one per CPU when it starts.
+UFUNCS = ("arctan2", "arccos", "arcsin", "arctan", "hypot", "exp", "log", "sin", "cos", "power")
+
+
+def bits_class() -> str:
+    """The class of CPU whose bits the outputs of this machine are: the processor's
+    architecture and the instruction sets of NumPy's builds of :data:`UFUNCS` chosen here
+    (``numpy.lib.introspect.opt_func_info``; NumPy's version where it has no such function,
+    a class no reference is recorded for)."""
+    import numpy as np
+
+    try:
+        from numpy.lib.introspect import opt_func_info
+    except ImportError:
+        return f"{platform.machine()}: NumPy {np.__version__}"
+    info = opt_func_info(func_name="^(" + "|".join(UFUNCS) + ")$", signature="^float64")
+    targets = sorted({entry["current"] for signatures in info.values()
+                      for entry in signatures.values()})
+    return f"{platform.machine()}: NumPy float64 functions on {', '.join(targets)}"
 
 
 def _lidarsim(*args: str) -> None:
@@ -52,4 +81,4 @@ def golden_hashes() -> dict[str, str]:
 
 
 if __name__ == "__main__":
-    print(json.dumps(golden_hashes(), indent=1, sort_keys=True))
+    print(json.dumps({bits_class(): golden_hashes()}, indent=1, sort_keys=True))
