@@ -45,5 +45,5 @@ def test_the_class_of_this_cpu_is_named_by_numpys_builds() -> None:
     info = introspect.opt_func_info(func_name="^arctan2$", signature="^float64")
     current = next(iter(info["arctan2"].values()))["current"]
     here = bits_class()
-    assert current in here and here.startswith(platform.machine())
+    assert here.startswith(platform.machine())
     assert ("X86_V4" in here) == (current == "X86_V4")

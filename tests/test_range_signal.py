@@ -160,7 +160,7 @@ SEED_MODEL_SHA256 = {
     "x86_64: NumPy float64 functions on X86_V4": {
         True: "b39c4fc5bc506fa1e1d114ad7be9f3782df4dec1f480a19eb051ccb104cb688b",
         False: "9a491821636a78f30fd1ddf9c2780e3ca04ac45f529761a2f9f4e16999e67ff5"},
-    "x86_64: NumPy float64 functions on X86_V3, baseline(X86_V2)": {
+    "x86_64: NumPy float64 functions on X86_V3 or baseline": {
         True: "5a073e9f606597459a6d179ff33e8592c54566b72f55816e822cb747ab75000c",
         False: "cf58acd6cff0e2ab17c90529ad03117436af327bfbea4a490e2b45a26389eac2"}}
 
