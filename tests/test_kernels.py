@@ -72,6 +72,33 @@ def test_sincos_is_within_two_ulp_of_the_c_library(scale):
     assert _ulps(s[big], np.sin(x)[big]).max() <= 2
 
 
+def test_sincos_reduced_takes_each_quadrant_as_the_integer_did():
+    """The quadrant is a float (vectorises on AVX2): k - 4·floor(k/4) equals k & 3 for every
+    k that |x| < 2**20 reaches, and the results at the quadrants' edges, on both sides of
+    zero, are the exact values (the same as with the integer quadrant)."""
+    from lidarsim_core.kernels.trig import _LIMIT, sincos_reduced
+
+    k = np.arange(-(2 ** 20), 2 ** 20 + 1, dtype=np.float64)  # |k| <= |x|·2/π + 1/2
+    assert np.all(k - 4.0 * np.floor(k * 0.25) == (k.astype(np.int64) & 3))
+
+    @numba.njit
+    def both(x):
+        s, c = np.empty_like(x), np.empty_like(x)
+        for i in range(x.size):
+            s[i], c[i] = sincos_reduced(x[i])
+        return s, c
+
+    quarter = np.arange(-8, 9) * (math.pi / 2)
+    s, c = both(quarter)
+    expected_s = np.array([0.0, 1.0, 0.0, -1.0])[np.arange(-8, 9) % 4]
+    expected_c = np.array([1.0, 0.0, -1.0, 0.0])[np.arange(-8, 9) % 4]
+    assert np.abs(s - expected_s).max() < 1e-15 and np.abs(c - expected_c).max() < 1e-15
+    x = np.random.default_rng(5).uniform(-_LIMIT, _LIMIT, 200_000)
+    s, c = both(x)
+    assert np.abs(s - np.sin(x)).max() <= 2 * np.spacing(1.0)
+    assert np.abs(c - np.cos(x)).max() <= 2 * np.spacing(1.0)
+
+
 def test_sincos_of_non_finite_arguments_is_nan():
     from lidarsim_core.kernels.trig import sincos
 

@@ -10,8 +10,6 @@ library's sine and cosine), so directions agree with NumPy's to a few ulp.
 
 from __future__ import annotations
 
-import math
-
 import numpy as np
 from numba import njit
 
@@ -63,7 +61,7 @@ def spinning_directions(t, channel, rotation_hz, azimuth_start, spin, az_offset,
     out = np.empty((n, 3))
     for i in range(n):
         x = rotation_hz * t[i]
-        turns = x - math.floor(x)  # NumPy's mod(x, 1)
+        turns = x - np.floor(x)  # NumPy's mod(x, 1) (a float floor: .trig)
         c = channel[i]
         out[i, 0], out[i, 1], out[i, 2] = _unit(azimuth_start + spin * turns + az_offset[c],
                                                 elevation[c])
@@ -80,8 +78,8 @@ def lissajous_directions(t, azimuth_hz, azimuth_phase, amp_az, elevation_hz, ele
     for i in range(n):
         x = azimuth_hz * t[i]
         y = elevation_hz * t[i]
-        sin_az, _ = sincos(2 * np.pi * (x - math.floor(x)) + azimuth_phase)
-        sin_el, _ = sincos(2 * np.pi * (y - math.floor(y)) + elevation_phase)
+        sin_az, _ = sincos(2 * np.pi * (x - np.floor(x)) + azimuth_phase)
+        sin_el, _ = sincos(2 * np.pi * (y - np.floor(y)) + elevation_phase)
         out[i, 0], out[i, 1], out[i, 2] = _unit(amp_az * sin_az,
                                                 elevation_centre + amp_el * sin_el)
     return out

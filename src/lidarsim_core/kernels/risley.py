@@ -45,7 +45,7 @@ def _refract(dx, dy, dz, nx, ny, nz, eta):  # noqa: ANN001, ANN202
 def _roll(rate, t, phase):  # noqa: ANN001, ANN202
     """A prism's roll angle (rad) at time ``t``: ``2π·mod(rate·t, 1) + phase``."""
     x = rate * t
-    turns = x - math.floor(x)  # NumPy's mod(x, 1): the phase stays exact
+    turns = x - np.floor(x)  # NumPy's mod(x, 1): the phase stays exact (a float floor: .trig)
     return 2.0 * np.pi * turns + phase
 
 

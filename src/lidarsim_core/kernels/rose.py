@@ -28,7 +28,7 @@ def rose_directions(index, rate_hz, b, amplitude_rad, turn_period_s, rotation_pe
     for j in range(n):
         time = np.float64(index[j]) / rate_hz
         turns = time / turn_period_s
-        turn = math.floor(turns)
+        turn = np.floor(turns)  # a float: no int64 conversion in the vector loop (.trig)
         phi = 2.0 * math.pi * (turns - turn)
         sin_b, _ = sincos_reduced(b * phi)
         r = amplitude_rad * sin_b

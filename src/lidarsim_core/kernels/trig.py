@@ -33,22 +33,29 @@ _C12, _C14, _C16, _C18 = (1 / math.factorial(12), -1 / math.factorial(14),
 
 @njit(inline="always", cache=True)
 def sincos_reduced(x):  # noqa: ANN001, ANN201
-    """:func:`sincos` for ``|x| < 2**20`` without branches, so loops of it vectorise."""
-    k = math.floor(x * _TWO_OVER_PI + 0.5)
+    """:func:`sincos` for ``|x| < 2**20`` without branches, so loops of it vectorise.
+
+    The quadrant stays a float (``np.floor``, not ``math.floor``, which numba makes an
+    ``int64``): AVX2 has no vector conversion between float64 and int64 (AVX-512DQ has), so
+    one in the loop keeps LLVM's vector loop converting lane by lane, 4.5 against 3.0 ns a
+    sine and cosine on an AVX2 CPU. ``k`` is an integer below 2**21 either way, so every
+    product and sum is the one the integer gave.
+    """
+    k = np.floor(x * _TWO_OVER_PI + 0.5)
     r = ((x - k * _P1) - k * _P2) - k * _P3
     z = r * r
     s = r + r * z * (_S3 + z * (_S5 + z * (_S7 + z * (_S9 + z * (
         _S11 + z * (_S13 + z * (_S15 + z * _S17)))))))
     c = 1.0 - 0.5 * z + z * z * (_C4 + z * (_C6 + z * (_C8 + z * (_C10 + z * (
         _C12 + z * (_C14 + z * (_C16 + z * _C18)))))))
-    quadrant = np.int64(k) & 3
+    quadrant = k - 4.0 * np.floor(k * 0.25)  # k mod 4, exactly (k * 0.25 is exact)
     # quadrant 0: (s, c), 1: (c, -s), 2: (-s, -c), 3: (-c, s)
-    odd = (quadrant & 1) == 1
+    odd = (quadrant == 1.0) | (quadrant == 3.0)
     sin_x = c if odd else s
     cos_x = s if odd else c
-    if quadrant >= 2:
+    if quadrant >= 2.0:
         sin_x = -sin_x
-    if quadrant == 1 or quadrant == 2:
+    if (quadrant == 1.0) | (quadrant == 2.0):
         cos_x = -cos_x
     return sin_x, cos_x
 
