@@ -95,6 +95,37 @@ def test_shared_yaml_anchors_still_work(tmp_path):
     assert data["c"] == {"position_m": [1, 2, 3], "extra": 1}
 
 
+def test_both_yaml_parsers_read_the_same_and_refuse_the_same(tmp_path):
+    """Configuration is parsed by libyaml where PyYAML has it, and a document it refuses by
+    PyYAML's own parser again (its messages): on every YAML file of the repository both give
+    the same data, both refuse tags and repeated keys, and a malformed file gets PyYAML's
+    message, with the line and column of the problem."""
+    import yaml
+
+    from lidarsim_core.base.config_io import _safe_loaders, read_config_file
+
+    fast, plain = _safe_loaders()
+    if getattr(yaml, "__with_libyaml__", False):
+        assert fast is not plain and issubclass(fast, yaml.CSafeLoader)
+    files = sorted(SRC.parents[1].glob("sensors/*.yaml")) + \
+        sorted(SRC.parents[1].glob("examples/**/*.yaml"))
+    assert len(files) >= 12
+    for path in files:
+        text = path.read_text(encoding="utf-8")
+        assert yaml.load(text, Loader=fast) == yaml.load(text, Loader=plain), path
+    marker = tmp_path / "pwned"
+    for loader in (fast, plain):
+        for text in ["a: 1\na: 2\n"] + [f"value: {tag}\n" for tag in _tags(marker)]:
+            with pytest.raises(yaml.constructor.ConstructorError):
+                yaml.load(text, Loader=loader)
+    assert not marker.exists()
+    path = tmp_path / "bad.yaml"
+    path.write_text("a:\n\t- 1\n")
+    with pytest.raises(ConfigError, match=r"line 2, column 1: found character '\\t' that "
+                                          r"cannot start any token"):
+        read_config_file(path)
+
+
 class _Touch:
     """Unpickling this creates the marker file: proof that a pickle was loaded."""
 
@@ -161,7 +192,7 @@ def test_the_source_has_no_unsafe_loading():
                 problems.append(f"{where}:{call.lineno}: calls {func}()")
             if func == "yaml.load":
                 loader = {k.arg: ast.unparse(k.value) for k in call.keywords}.get("Loader", "")
-                if loader != "_safe_loader()":
+                if loader not in ("_safe_loaders()[0]", "_safe_loaders()[1]"):
                     problems.append(f"{where}:{call.lineno}: yaml.load with Loader={loader!r}")
             if func in ("np.load", "numpy.load"):
                 kw = {k.arg: ast.unparse(k.value) for k in call.keywords}
