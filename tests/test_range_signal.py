@@ -9,6 +9,7 @@ import math
 
 import numpy as np
 import pytest
+from golden_outputs import AVX2_X86_64, AVX512_X86_64, bits_class
 from helpers import datasheet, scenario
 
 from lidarsim_core.noise.signal import TDC_FLOOR_M
@@ -140,8 +141,6 @@ def test_seed_papers_model_is_unchanged():
     for name in cloud.columns:
         digest.update(name.encode())
         digest.update(np.ascontiguousarray(cloud[name]).tobytes())
-    from golden_outputs import bits_class
-
     from lidarsim_core import kernels
 
     recorded = SEED_MODEL_SHA256.get(bits_class())
@@ -157,10 +156,10 @@ def test_seed_papers_model_is_unchanged():
 #: AVX-512 builds of its float64 functions round differently from its AVX2 ones); the AVX2
 #: class's recorded from 00fecf3, whose outputs on AVX-512 were still those of bcd879e.
 SEED_MODEL_SHA256 = {
-    "x86_64: NumPy float64 functions on X86_V4": {
+    AVX512_X86_64: {
         True: "b39c4fc5bc506fa1e1d114ad7be9f3782df4dec1f480a19eb051ccb104cb688b",
         False: "9a491821636a78f30fd1ddf9c2780e3ca04ac45f529761a2f9f4e16999e67ff5"},
-    "x86_64: NumPy float64 functions on X86_V3 or baseline": {
+    AVX2_X86_64: {
         True: "5a073e9f606597459a6d179ff33e8592c54566b72f55816e822cb747ab75000c",
         False: "cf58acd6cff0e2ab17c90529ad03117436af327bfbea4a490e2b45a26389eac2"}}
 

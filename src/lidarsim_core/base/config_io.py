@@ -282,15 +282,15 @@ def _safe_loaders() -> tuple[Any, Any]:
             seen.add(key)
         return SafeConstructor.construct_mapping(loader, node, deep=deep)
 
-    loaders = []
-    for base in (getattr(yaml, "CSafeLoader", yaml.SafeLoader), yaml.SafeLoader):
+    def unique_keys(base: Any) -> Any:
         loader = type("UniqueKeySafeLoader", (base,), {})
         loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG,
                                construct_mapping)
-        loaders.append(loader)
-    if loaders[0].__mro__[1] is yaml.SafeLoader:
-        loaders[1] = loaders[0]
-    _LOADERS = (loaders[0], loaders[1])
+        return loader
+
+    plain = unique_keys(yaml.SafeLoader)
+    fast = getattr(yaml, "CSafeLoader", None)
+    _LOADERS = (plain if fast is None else unique_keys(fast), plain)
     return _LOADERS
 
 
