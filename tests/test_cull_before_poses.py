@@ -267,3 +267,78 @@ def test_a_spinning_pattern_is_culled_by_groups_before_its_directions(monkeypatc
     every_pulse = sim.run_frame(0)
     for name, column in every_pulse.columns.items():
         np.testing.assert_array_equal(culled[name], column, err_msg=name)
+
+
+@pytest.mark.parametrize("datasheet", ["livox-mid70-rose", "livox-mid70", "livox-mid40",
+                                       "livox-avia"])
+def test_rose_and_risley_groups_stay_within_their_angle(datasheet):
+    """Every ray of a rose or Risley direction group is within the group's angle of its
+    representative (directions computed exactly, at the start of a scan and 10⁴ s into
+    it), the groups partition the indices, and the bound is near the largest deviation
+    (the rose's is exact where a petal crosses the boresight; the Risley's is sampled)."""
+    data = _suite("static-risley", 0.3)
+    data["sensor"]["datasheet"] = datasheet
+    pattern = Simulation(scenario_from_dict(data)).pattern
+    rate = pattern.sensor.point_rate_hz
+    for first, count in ((0, 100_000), (12345, 7777), (int(1e4 * rate), 20_000), (3, 1)):
+        index = np.arange(first, first + count)
+        grouped = pattern.direction_groups(index)
+        members = [grouped.members(np.array([g])) for g in range(len(grouped.representative))]
+        np.testing.assert_array_equal(np.sort(np.concatenate(members)), index)
+        np.testing.assert_array_equal(grouped.members(np.arange(len(members))), index)
+        group = np.empty(count, dtype=np.int64)
+        for g, rows in enumerate(members):
+            group[rows - first] = g
+        directions = pattern.rays_for_indices(index).direction
+        reps = pattern.rays_for_indices(grouped.representative).direction
+        cosine = np.clip(np.einsum("ij,ij->i", directions, reps[group]), -1.0, 1.0)
+        worst = float(np.arccos(cosine).max())
+        assert worst <= grouped.angle
+        if count > 10_000:
+            assert worst > 0.6 * grouped.angle, (worst, grouped.angle)
+
+
+def test_a_risley_bound_is_refused_where_its_grid_is_too_coarse(monkeypatch):
+    """With four roll angles per prism the sampled speed changes too much between grid
+    points to be trusted: no bound, no groups (every ray is computed)."""
+    from lidarsim_core.patterns import risley
+
+    monkeypatch.setitem(risley.SPEED_STEPS, 2, 4)
+    data = _suite("static-risley", 0.3)
+    pattern = Simulation(scenario_from_dict(data)).pattern
+    assert pattern.max_turn_rate() is None
+    assert pattern.direction_groups(np.arange(1000)) is None
+
+
+@pytest.mark.parametrize("scene", ["static-demo", "tumbling-fixed-risley", "flyaround-50m"])
+def test_rose_and_risley_frames_are_culled_by_groups_before_their_directions(scene,
+                                                                           monkeypatch):
+    """The rose from a still sensor, the Risley MID-70 on a tumbling target and on a
+    fly-around: fewer rays are computed than emitted, every pulse that hits is among the
+    kept ones, and the frame equals the one cast on every pulse, column by column."""
+    from lidarsim_core.pipeline import cull
+
+    sim = Simulation(scenario_from_dict(_suite(scene, 0.2)))
+    ctx = sim.context
+    k0, k1 = sim.frame_rays(0)
+    index = np.arange(k0, k1)
+    computed = []
+    original = type(sim.pattern).rays_for_indices
+
+    def spy(self, rows):
+        computed.append(len(rows))
+        return original(self, rows)
+
+    monkeypatch.setattr(type(sim.pattern), "rays_for_indices", spy)
+    kept = cull.culled_piece(ctx, sim.culler, index, 0.0)
+    assert len(computed) == 2 and sum(computed) < 0.7 * len(index)
+    posed = with_piece_poses(ctx, original(sim.pattern, index), 0.0)
+    columns = process_piece(ctx, sim.stages, posed, ctx.noise_contexts(0), 0.0, 0)
+    hit = np.unique(columns["ray_index"])
+    assert len(hit) > 1000 and np.isin(hit, kept.index).all()
+    monkeypatch.setattr(type(sim.pattern), "rays_for_indices", original)
+    culled = sim.run_frame(0)
+    sim.culler = None
+    every_pulse = sim.run_frame(0)
+    for name, column in every_pulse.columns.items():
+        np.testing.assert_array_equal(culled[name], column, err_msg=name)

@@ -227,7 +227,7 @@ def _spinning_far() -> dict:
 def _posed_path_only(monkeypatch):
     """Cull on the posed batch (:meth:`PulseCuller.keep`), as for trajectories without rate
     bounds."""
-    monkeypatch.setattr(PulseCuller, "keep_before_poses", lambda self, *args: None)
+    monkeypatch.setattr(PulseCuller, "keep_before_poses", lambda self, *args, **kwargs: None)
 
 
 def test_moving_grid_is_used_and_its_motion_growth_is_needed(monkeypatch):
@@ -268,8 +268,8 @@ def test_culling_before_poses_grows_the_map_by_the_rate_bounds(monkeypatch):
     decided = []
     original = PulseCuller.keep_before_poses
 
-    def spy(self, *args):
-        rows = original(self, *args)
+    def spy(self, *args, **kwargs):
+        rows = original(self, *args, **kwargs)
         decided.append(rows is not None)
         return rows
 

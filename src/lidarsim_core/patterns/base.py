@@ -77,6 +77,38 @@ class DirectionGroups:
     members: Callable[[np.ndarray], np.ndarray]
 
 
+def cycle_groups(index: np.ndarray, size: int, cycles: int, angle: float
+                 ) -> DirectionGroups | None:
+    """Direction groups of a pattern that fires ``size`` slots per cycle (ray ``k`` in slot
+    ``k mod size``): a group per slot and block of ``cycles`` cycles, its representative the
+    middle ray, so no ray is more than ``cycles // 2`` cycles from it. ``angle`` bounds
+    the angle between two rays of one slot that many cycles apart (the pattern's bound; see
+    :meth:`ScanPattern.direction_groups`). None unless ``index`` is consecutive."""
+    index = np.asarray(index, dtype=np.int64)
+    n = len(index)
+    if n == 0 or index[-1] - index[0] != n - 1:
+        return None
+    first, last = int(index[0]), int(index[-1])
+    block0 = first // size // cycles
+    blocks = last // size // cycles - block0 + 1
+    block = np.repeat(np.arange(block0, block0 + blocks, dtype=np.int64), size)
+    slot = np.tile(np.arange(size, dtype=np.int64), blocks)
+    # the cycles of each (block, slot) whose ray lies in [first, last]
+    low = np.maximum(block * cycles, -((slot - first) // size))
+    high = np.minimum(block * cycles + cycles - 1, (last - slot) // size)
+    present = low <= high
+    low, high, slot = low[present], high[present], slot[present]
+
+    def members(groups: np.ndarray) -> np.ndarray:
+        count = high[groups] - low[groups] + 1
+        starts = np.cumsum(count) - count
+        cycle = np.repeat(low[groups] - starts, count) + np.arange(int(count.sum()))
+        rays = cycle * size + np.repeat(slot[groups], count)
+        return rays if size == 1 else np.sort(rays)
+
+    return DirectionGroups((low + high) // 2 * size + slot, angle, members)
+
+
 class ScanPattern(Component):
     """A scan pattern bound to one sensor datasheet.
 

@@ -39,12 +39,24 @@ from .. import kernels
 from ..base.components import ComponentOptions
 from ..base.errors import ConfigError, PluginError
 from ..hookspecs import hookimpl
-from .base import RayBatch
+from .base import DirectionGroups, RayBatch, cycle_groups
 from .geometry import directions_from_az_el, off_axis_angle
 from .optics import refract, tilted_normal
 from .timing import CycleTimedPattern, FiringCycle
 
 _AXIS = np.array([1.0, 0.0, 0.0])
+#: Firing cycles per group of :meth:`RisleyPattern.direction_groups`, at most (a MID-70 group
+#: spans 0.16 ms; its rays stay within 1.9° of the middle one), halved while a group's angle
+#: exceeds :data:`GROUP_ANGLE` (the Avia's six channels: four cycles, 1.2°).
+GROUP_CYCLES = 16
+#: The angle (rad) above which the groups are made smaller: 2°.
+GROUP_ANGLE = math.radians(2.0)
+#: Grid steps per prism on which :meth:`RisleyPattern.max_turn_rate` samples the speed, by
+#: the number of prisms (~65,000 prism angles per channel).
+SPEED_STEPS = {1: 4096, 2: 256, 3: 32, 4: 16}
+#: Largest correction for the grid's step, relative to the largest speed sampled, above which
+#: the grid is judged too coarse for the prisms and the rays are not grouped.
+SPEED_CORRECTION_LIMIT = 0.25
 
 
 class PrismSpec(ComponentOptions):
@@ -214,6 +226,74 @@ class RisleyPattern(CycleTimedPattern):
     def max_off_axis_rad(self) -> float:
         """Largest off-axis angle any channel reaches at any prism angles (rad)."""
         return self._max_off_axis
+
+    @cached_property
+    def _turn_rate(self) -> float | None:
+        prisms = self.options.prisms
+        omega = 2.0 * np.pi * np.array([p.rotor_hz for p in prisms])
+        if not np.any(omega):
+            return 0.0
+        steps = SPEED_STEPS[len(prisms)]
+        axes = [np.arange(steps) * (2.0 * np.pi / steps)] * len(prisms)
+        grid = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, len(prisms))
+        tau = 1e-5 / float(np.abs(omega).max())  # a step of at most 10 µrad of any prism
+        worst = 0.0
+        for incident in self._incident:
+            beam = np.broadcast_to(incident, (len(grid), 3))
+            ahead = self.trace(beam, grid + omega * tau)
+            behind = self.trace(beam, grid - omega * tau)
+            speed = np.linalg.norm(ahead - behind, axis=1) / (2.0 * tau)
+            if not np.all(np.isfinite(speed)):
+                return None
+            speed = speed.reshape((steps,) * len(prisms))
+            largest = float(speed.max())
+            # any prism angles are within half a step of a grid point along each of the P
+            # axes, where the speed changes by about half the largest change between
+            # neighbours: P · change / 2, doubled
+            change = max(float(np.abs(np.roll(speed, -1, axis=k) - speed).max())
+                         for k in range(len(prisms)))
+            correction = change * len(prisms)
+            if correction > SPEED_CORRECTION_LIMIT * largest:
+                return None
+            worst = max(worst, largest + correction)
+        return worst * 1.01  # the chord of the finite difference is shorter than the arc
+
+    def max_turn_rate(self) -> float | None:
+        """An upper bound of how fast a ray's direction turns (rad/s), or None where none is
+        trusted.
+
+        A beam's direction is a smooth function of the prisms' roll angles, which turn at
+        ``ω = 2π · rotor_hz``. The speed ``|d/dt F(ψ + ω t)|`` is sampled on a grid of
+        :data:`SPEED_STEPS` roll angles per prism (every channel; central differences of
+        :meth:`trace`), and grown by the grid's step: every roll is within half a step of a
+        grid point along each of the P axes, where the speed differs by about half the largest
+        change between neighbouring grid points; that ``P · change / 2`` is doubled, and the
+        whole grown by 1 %. None (no grouping) when the correction exceeds
+        :data:`SPEED_CORRECTION_LIMIT` of the speed (a grid too coarse for the prisms, e.g.
+        near total internal reflection). Computed once per pattern (~0.1 s for two prisms)."""
+        return self._turn_rate
+
+    def direction_groups(self, index: np.ndarray) -> DirectionGroups | None:
+        """A group per slot of the firing cycle and block of ``C`` cycles (:data:`GROUP_CYCLES`,
+        halved while the angle below exceeds :data:`GROUP_ANGLE`): its rays share a channel
+        and are at most ``C // 2`` periods from the middle one (the representative), so
+        within ``max_turn_rate · period · C // 2`` of it (an arc on the sphere is no shorter than the angle between its ends), grown by
+        the rounding of the roll angles in long scans and a nanoradian. None when no bound
+        is trusted or a subclass changes the firing schedule."""
+        index = np.asarray(index, dtype=np.int64)
+        if len(index) == 0 or type(self).build_cycle is not RisleyPattern.build_cycle:
+            return None
+        rate = self.max_turn_rate()
+        if rate is None:
+            return None
+        last = float(self.time_of_index(index[-1:])[0])
+        rounding = rate * abs(last) * 2.0 ** -48  # the rolls' mod(rate · t, 1), a few ulp of t
+        cycles = GROUP_CYCLES
+        while cycles > 2 and rate * self.cycle.period_s * (cycles // 2) > GROUP_ANGLE:
+            cycles //= 2
+        angle = rate * self.cycle.period_s * (cycles // 2)
+        return cycle_groups(index, self.cycle.size, cycles,
+                            angle * (1.0 + 1e-9) + rounding + 1e-9)
 
 
 @hookimpl

@@ -22,7 +22,7 @@ from pydantic import Field, model_validator
 from .. import kernels
 from ..base.components import ComponentOptions
 from ..hookspecs import hookimpl
-from .base import DirectionGroups, RayBatch
+from .base import DirectionGroups, RayBatch, cycle_groups
 from .geometry import directions_from_az_el
 from .timing import CycleTimedPattern, FiringCycle
 
@@ -123,32 +123,9 @@ class SpinningPattern(CycleTimedPattern):
         their cycles, at most ``GROUP_CYCLES // 2`` periods from the middle one (the
         representative); two directions at one elevation ``e`` whose azimuths differ by ``Δ``
         are at most ``Δ cos e <= Δ`` apart."""
-        index = np.asarray(index, dtype=np.int64)
-        n = len(index)
-        if n == 0 or index[-1] - index[0] != n - 1:
-            return None
-        size, cycles = self.cycle.size, GROUP_CYCLES
-        first, last = int(index[0]), int(index[-1])
-        block0 = first // size // cycles
-        blocks = last // size // cycles - block0 + 1
-        block = np.repeat(np.arange(block0, block0 + blocks, dtype=np.int64), size)
-        slot = np.tile(np.arange(size, dtype=np.int64), blocks)
-        # the cycles of each (block, slot) whose ray lies in [first, last]
-        low = np.maximum(block * cycles, -((slot - first) // size))
-        high = np.minimum(block * cycles + cycles - 1, (last - slot) // size)
-        present = low <= high
-        low, high, slot = low[present], high[present], slot[present]
-
-        def members(groups: np.ndarray) -> np.ndarray:
-            count = high[groups] - low[groups] + 1
-            starts = np.cumsum(count) - count
-            cycle = np.repeat(low[groups] - starts, count) + np.arange(int(count.sum()))
-            return np.sort(cycle * size + np.repeat(slot[groups], count))
-
         angle = 2.0 * math.pi * self.options.rotation_hz * self.cycle.period_s * \
-            (cycles // 2)
-        return DirectionGroups((low + high) // 2 * size + slot, angle * (1.0 + 1e-9) + 1e-9,
-                               members)
+            (GROUP_CYCLES // 2)
+        return cycle_groups(index, self.cycle.size, GROUP_CYCLES, angle * (1.0 + 1e-9) + 1e-9)
 
     def max_off_axis_rad(self) -> float:
         return math.pi
