@@ -173,7 +173,7 @@ def test_fast_path_is_independent_of_chunks_and_threads(monkeypatch, chunk, thre
 def test_inverse_normal_cdf_is_scipys_to_the_bit():
     from scipy.special import ndtri as scipy_ndtri
 
-    from lidarsim_core.kernels.fused import ndtri, normals
+    from lidarsim_core.kernels.fused import ndtri, ndtri_block, normals
 
     key = stream_key(7, 3, "noise.0.angular")
     index = np.arange(0, 3_000_000, 7, dtype=np.int64)
@@ -184,8 +184,16 @@ def test_inverse_normal_cdf_is_scipys_to_the_bit():
                             np.exp(-np.linspace(0.0, 36.0, 20001)),
                             np.nextafter(np.exp(-2.0), [0.0, 1.0]),
                             1.0 - np.nextafter(np.exp(-2.0), [0.0, 1.0])])
-    mine = np.array([ndtri(u) for u in edges[(edges > 0) & (edges < 1)]])
-    assert mine.tobytes() == scipy_ndtri(edges[(edges > 0) & (edges < 1)]).tobytes()
+    edges = edges[(edges > 0) & (edges < 1)]
+    mine = np.array([ndtri(u) for u in edges])
+    assert mine.tobytes() == scipy_ndtri(edges).tobytes()
+    # the block version (the central branch vectorised, the tails gathered), in blocks of
+    # every length around the kernels' block and shuffled so that tails and centre mix
+    shuffled = np.random.default_rng(5).permutation(edges)
+    for length in (1, 255, 256, 257, len(shuffled)):
+        out = np.full(length, np.nan)
+        ndtri_block(shuffled[:length], out, length)
+        assert out.tobytes() == scipy_ndtri(shuffled[:length]).tobytes()
 
 
 class _Wobble(NoiseModel):

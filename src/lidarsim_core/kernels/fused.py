@@ -31,7 +31,7 @@ import numpy as np
 from numba import njit
 
 from .philox import philox_block, to_unit
-from .rotation import turn_ray
+from .rotation import turn_ray, turn_ray_with
 
 # Cephes ndtri (scipy/xsf include/xsf/cephes/ndtri.h): rational approximations of the
 # inverse normal CDF on |y - 1/2| <= 3/8, then on z = sqrt(-2 log y) in [2, 8) and [8, 64)
@@ -113,19 +113,82 @@ def _p1evl8(x, c):  # noqa: ANN001, ANN202 - x^8 + c0 x^7 + ... + c7 (leading 1 
     return a * x + c[7]
 
 
+#: Rays per block of :func:`ray_stage` and :func:`normals`: their uniforms and normals (a few
+#: KiB) stay in the L1 cache between the loops.
+BLOCK = 256
+
+
+@njit(nogil=True, cache=True, error_model="numpy")
+def ndtri_block(u, out, m):  # noqa: ANN001, ANN201
+    """``out[j] = ndtri(u[j])`` for ``j < m``: the same bits as :func:`ndtri`, faster.
+
+    One uniform at a time, :func:`ndtri` waits on each operation before the next: its central
+    branch (three quarters of the uniforms) is two Horner chains and a division (~10 ns), a
+    tail ``log``, ``sqrt``, ``log``, a division, two chains and a division (~55 ns). Here each
+    step is a loop over the block, so the steps of neighbouring elements overlap: the central
+    formula for every element in one branch-free loop that LLVM vectorises; then the tails'
+    elements gathered, their ``sqrt(-2 log y)`` and ``log`` in two loops of C-library calls,
+    the rational function of ``1/x`` in another vectorised loop. Every element gets exactly
+    :func:`ndtri`'s operations on :func:`ndtri`'s values (the central formula on ``1 - y``
+    above ``1 - exp(-2)``, as it does); the rare ``x >= 8`` (``y < 1.3e-14``) is
+    :func:`ndtri` itself. (``error_model="numpy"``: no zero-division checks, which would
+    keep the loops scalar.)"""
+    high = 1.0 - _EXP_M2
+    for j in range(m):
+        y0 = u[j]
+        y = 1.0 - y0 if y0 > high else y0
+        y = y - 0.5
+        y2 = y * y
+        p = ((((_P0[0] * y2 + _P0[1]) * y2 + _P0[2]) * y2 + _P0[3]) * y2 + _P0[4])
+        x = y + y * (y2 * p / _p1evl8(y2, _Q0))
+        out[j] = x * _SQRT2PI
+    rows = np.empty(m, dtype=np.int64)
+    tail = np.empty(m)
+    count = 0
+    for j in range(m):
+        y0 = u[j]
+        y = 1.0 - y0 if y0 > high else y0
+        if not y > _EXP_M2:
+            rows[count] = j
+            tail[count] = y
+            count += 1
+    root = np.empty(count)
+    log_root = np.empty(count)
+    for k in range(count):
+        root[k] = math.sqrt(-2.0 * math.log(tail[k]))
+    for k in range(count):
+        log_root[k] = math.log(root[k])
+    for k in range(count):
+        x = root[k]
+        x0 = x - log_root[k] / x
+        z = 1.0 / x
+        tail[k] = x0 - z * _polevl9(z, _P1) / _p1evl8(z, _Q1)
+    for k in range(count):
+        j = rows[k]
+        if not root[k] < 8.0:
+            out[j] = ndtri(u[j])
+        elif u[j] > high:
+            out[j] = tail[k]
+        else:
+            out[j] = -tail[k]
+
+
 @njit(nogil=True, cache=True)
 def normals(key, ray_index, draws):  # noqa: ANN001, ANN201
     """(N, draws) :func:`lidarsim_core.noise.rng.ray_normals` of a stream (its Philox
     ``key``), computed here (the reference for the tests of :func:`ndtri`)."""
     blocks = (draws + 3) // 4
-    out = np.empty((ray_index.shape[0], draws))
-    for row in range(ray_index.shape[0]):
+    n = ray_index.shape[0]
+    out = np.empty((n, draws))
+    uniform = np.empty(n * draws)
+    for row in range(n):
         base = np.uint64(ray_index[row]) * np.uint64(blocks) + np.uint64(1)
         for block in range(blocks):
             w = philox_block(base + np.uint64(block), key[0], key[1])
             for j in range(4):
                 if 4 * block + j < draws:
-                    out[row, 4 * block + j] = ndtri(to_unit(w[j]))
+                    uniform[row * draws + 4 * block + j] = to_unit(w[j])
+    ndtri_block(uniform, out.reshape(n * draws), n * draws)
     return out
 
 
@@ -161,17 +224,40 @@ def ray_stage(direction, ray_index, keys, sigmas, sensor_matrix, flown, scene): 
         (N, 3) outputs.
     """
     shared = sensor_matrix.shape[0] == 1
-    for i in range(direction.shape[0]):
-        x, y, z = direction[i, 0], direction[i, 1], direction[i, 2]
-        counter = np.uint64(ray_index[i]) + np.uint64(1)  # one block: two draws per ray
+    n = direction.shape[0]
+    # per block: every ray's two uniforms of an angular error, their normals in one
+    # vectorised pass (:func:`ndtri_block`), the turns; each ray sees the same operations in
+    # the same order as one ray at a time
+    u1, u2 = np.empty(BLOCK), np.empty(BLOCK)
+    a1, a2 = np.empty(BLOCK), np.empty(BLOCK)
+    c1, s1, c2, s2 = np.empty(BLOCK), np.empty(BLOCK), np.empty(BLOCK), np.empty(BLOCK)
+    for lo in range(0, n, BLOCK):
+        m = min(BLOCK, n - lo)
+        for j in range(m):
+            flown[lo + j, 0] = direction[lo + j, 0]
+            flown[lo + j, 1] = direction[lo + j, 1]
+            flown[lo + j, 2] = direction[lo + j, 2]
         for a in range(keys.shape[0]):
-            w = philox_block(counter, keys[a, 0], keys[a, 1])
-            a1 = ndtri(to_unit(w[0])) * sigmas[a]
-            a2 = ndtri(to_unit(w[1])) * sigmas[a]
-            x, y, z = turn_ray(x, y, z, a1, a2)
-        flown[i, 0], flown[i, 1], flown[i, 2] = x, y, z
-        m = sensor_matrix[0] if shared else sensor_matrix[i]
-        scene[i, 0], scene[i, 1], scene[i, 2] = matvec(m, x, y, z, False)
+            for j in range(m):
+                counter = np.uint64(ray_index[lo + j]) + np.uint64(1)  # one block: two draws
+                w = philox_block(counter, keys[a, 0], keys[a, 1])
+                u1[j] = to_unit(w[0])
+                u2[j] = to_unit(w[1])
+            ndtri_block(u1, a1, m)
+            ndtri_block(u2, a2, m)
+            sigma = sigmas[a]
+            for j in range(m):  # the C library's sines and cosines, independent calls
+                c1[j], s1[j] = math.cos(a1[j] * sigma), math.sin(a1[j] * sigma)
+                c2[j], s2[j] = math.cos(a2[j] * sigma), math.sin(a2[j] * sigma)
+            for j in range(m):
+                i = lo + j
+                flown[i, 0], flown[i, 1], flown[i, 2] = turn_ray_with(
+                    flown[i, 0], flown[i, 1], flown[i, 2], c1[j], s1[j], c2[j], s2[j])
+        for j in range(m):
+            i = lo + j
+            ms = sensor_matrix[0] if shared else sensor_matrix[i]
+            scene[i, 0], scene[i, 1], scene[i, 2] = matvec(ms, flown[i, 0], flown[i, 1],
+                                                           flown[i, 2], False)
 
 
 @njit(nogil=True, cache=True)
@@ -250,35 +336,39 @@ def measure(best, best_target, flown, ray_index, range_min, range_max, kinds,  #
         if best_target[i] >= 0 and best[i] >= range_min and best[i] <= range_max:
             count += 1
     rows = np.empty(count, dtype=np.int64)
+    k = 0
+    for i in range(n):
+        if best_target[i] >= 0 and best[i] >= range_min and best[i] <= range_max:
+            rows[k] = i
+            k += 1
+    if drawn.shape[1] == 0:  # the seed paper's normals, drawn here for the returns in order
+        drawn = np.zeros((kinds.shape[0], count))
+        uniform = np.empty(count)
+        for a in range(kinds.shape[0]):
+            if kinds[a] == RANGE_GAUSSIAN:
+                for k in range(count):
+                    counter = np.uint64(ray_index[rows[k]]) + np.uint64(1)
+                    uniform[k] = to_unit(philox_block(counter, keys[a, 0], keys[a, 1])[0])
+                ndtri_block(uniform, drawn[a], count)
     range_true = np.empty(count)
     range_measured = np.empty(count)
     point = np.empty((3, count))
     truth = np.empty((3, count))
-    k = 0
-    for i in range(n):
+    for k in range(count):
+        i = rows[k]
         r = best[i]
-        if not (best_target[i] >= 0 and r >= range_min and r <= range_max):
-            continue
         measured = r
-        counter = np.uint64(ray_index[i]) + np.uint64(1)
         for a in range(kinds.shape[0]):
             if kinds[a] == RANGE_GAUSSIAN:  # R + z σ (noise.gaussian.RangeError)
-                if drawn.shape[1] > 0:
-                    z = drawn[a, k]
-                else:
-                    w = philox_block(counter, keys[a, 0], keys[a, 1])
-                    z = ndtri(to_unit(w[0]))
-                measured = measured + z * params[a, 0]
+                measured = measured + drawn[a, k] * params[a, 0]
             elif kinds[a] == RANGE_SYSTEMATIC:  # R (1 + scale) + bias
                 measured = measured * params[a, 0] + params[a, 1]
             else:  # offset + q round((R - offset) / q), halves to even as NumPy's round
                 measured = params[a, 1] + params[a, 0] * np.round(
                     (measured - params[a, 1]) / params[a, 0])
-        rows[k] = i
         range_true[k] = r
         range_measured[k] = measured
         for c in range(3):
             point[c, k] = flown[i, c] * measured
             truth[c, k] = flown[i, c] * r
-        k += 1
     return rows, range_true, range_measured, point, truth

@@ -18,6 +18,13 @@ from numba import njit
 def turn_ray(x, y, z, a1, a2):  # noqa: ANN001, ANN201
     """One direction turned by ``a1`` about u, then ``a2`` about v (the fast path's loops call
     it per ray, :func:`rotate_two_angles` over arrays)."""
+    return turn_ray_with(x, y, z, math.cos(a1), math.sin(a1), math.cos(a2), math.sin(a2))
+
+
+@njit(inline="always", cache=True)
+def turn_ray_with(x, y, z, c1, s1, c2, s2):  # noqa: ANN001, ANN201
+    """:func:`turn_ray` with the cosines and sines of ``a1`` and ``a2`` given (a loop that
+    computes them first for a block of rays lets the C library's calls overlap)."""
     if abs(z) > 0.9:  # helper +Y near the vertical, else +Z
         ux, uy, uz = z, 0.0, -x
     else:
@@ -27,8 +34,6 @@ def turn_ray(x, y, z, a1, a2):  # noqa: ANN001, ANN201
     uy /= norm
     uz /= norm
     vx, vy, vz = y * uz - z * uy, z * ux - x * uz, x * uy - y * ux
-    c1, s1 = math.cos(a1), math.sin(a1)
-    c2, s2 = math.cos(a2), math.sin(a2)
     cc, cs = c1 * c2, c1 * s2
     return (cc * x + cs * ux - s1 * vx, cc * y + cs * uy - s1 * vy, cc * z + cs * uz - s1 * vz)
 
