@@ -205,6 +205,19 @@ def matvec(m, x, y, z, inverse):  # noqa: ANN001, ANN201
             (x * m[2, 0] + y * m[2, 1]) + z * m[2, 2])
 
 
+@njit(inline="always", cache=True)
+def matvec_at(m, k, x, y, z, inverse):  # noqa: ANN001, ANN201
+    """:func:`matvec` of the matrix ``m[k]`` of an (N, 3, 3) array, read in place (a view
+    ``m[k]`` per ray costs a reference count in a loop)."""
+    if inverse:
+        return ((x * m[k, 0, 0] + y * m[k, 1, 0]) + z * m[k, 2, 0],
+                (x * m[k, 0, 1] + y * m[k, 1, 1]) + z * m[k, 2, 1],
+                (x * m[k, 0, 2] + y * m[k, 1, 2]) + z * m[k, 2, 2])
+    return ((x * m[k, 0, 0] + y * m[k, 0, 1]) + z * m[k, 0, 2],
+            (x * m[k, 1, 0] + y * m[k, 1, 1]) + z * m[k, 1, 2],
+            (x * m[k, 2, 0] + y * m[k, 2, 1]) + z * m[k, 2, 2])
+
+
 @njit(nogil=True, cache=True)
 def ray_stage(direction, ray_index, keys, sigmas, sensor_matrix, flown, scene):  # noqa: ANN001
     """Write the flown directions (sensor frame) and their scene-frame rotations.
@@ -255,9 +268,8 @@ def ray_stage(direction, ray_index, keys, sigmas, sensor_matrix, flown, scene): 
                     flown[i, 0], flown[i, 1], flown[i, 2], c1[j], s1[j], c2[j], s2[j])
         for j in range(m):
             i = lo + j
-            ms = sensor_matrix[0] if shared else sensor_matrix[i]
-            scene[i, 0], scene[i, 1], scene[i, 2] = matvec(ms, flown[i, 0], flown[i, 1],
-                                                           flown[i, 2], False)
+            scene[i, 0], scene[i, 1], scene[i, 2] = matvec_at(
+                sensor_matrix, 0 if shared else i, flown[i, 0], flown[i, 1], flown[i, 2], False)
 
 
 @njit(nogil=True, cache=True)

@@ -22,7 +22,7 @@ import numpy as np
 from numba import njit
 
 from .embree_cast import _aligned_words, _intersect1, _intersect_packet, _rayhit_buffer, _set_ray
-from .fused import matvec
+from .fused import matvec, matvec_at
 from .raycast import plane_distance
 
 _INVALID = np.uint32(0xFFFFFFFF)
@@ -62,24 +62,31 @@ def cast_closest(intersect, scene, width, fields, directions, sensor_position, p
     valid_address = valid.ctypes.data
     body = np.empty((width, 6))
     n = directions.shape[0]
-    one_sensor = sensor_position.shape[0] == 1
-    one_position = position.shape[0] == 1
     one_matrix = matrix.shape[0] == 1
+    # one pose for every ray (a still scene): the body-frame origin is the same for all
+    still = sensor_position.shape[0] == 1 and position.shape[0] == 1 and one_matrix
     cx, cy, cz = -centre[0], -centre[1], -centre[2]
+    m = matrix[0]
+    sx, sy, sz = matvec(m, sensor_position[0, 0] - position[0, 0],
+                        sensor_position[0, 1] - position[0, 1],
+                        sensor_position[0, 2] - position[0, 2], True)
     for start in range(0, n, width):
         count = min(width, n - start)
-        for lane in range(width):
-            if lane >= count:
-                valid[lane] = 0
-                continue
+        for lane in range(count):
             i = start + lane
-            s = 0 if one_sensor else i
-            p = 0 if one_position else i
-            m = matrix[0] if one_matrix else matrix[i]
-            ox, oy, oz = matvec(m, sensor_position[s, 0] - position[p, 0],
-                                sensor_position[s, 1] - position[p, 1],
-                                sensor_position[s, 2] - position[p, 2], True)
-            dx, dy, dz = matvec(m, directions[i, 0], directions[i, 1], directions[i, 2], True)
+            if still:
+                ox, oy, oz = sx, sy, sz
+                dx, dy, dz = matvec(m, directions[i, 0], directions[i, 1], directions[i, 2],
+                                    True)
+            else:
+                s = 0 if sensor_position.shape[0] == 1 else i
+                p = 0 if position.shape[0] == 1 else i
+                k = 0 if one_matrix else i
+                ox, oy, oz = matvec_at(matrix, k, sensor_position[s, 0] - position[p, 0],
+                                       sensor_position[s, 1] - position[p, 1],
+                                       sensor_position[s, 2] - position[p, 2], True)
+                dx, dy, dz = matvec_at(matrix, k, directions[i, 0], directions[i, 1],
+                                       directions[i, 2], True)
             body[lane, 0], body[lane, 1], body[lane, 2] = ox, oy, oz
             body[lane, 3], body[lane, 4], body[lane, 5] = dx, dy, dz
             rx, ry, rz = ox + cx, oy + cy, oz + cz
@@ -87,6 +94,8 @@ def cast_closest(intersect, scene, width, fields, directions, sensor_position, p
             _set_ray(buf, flt, width, lane, rx + dx * shift, ry + dy * shift, rz + dz * shift,
                      dx, dy, dz)
             valid[lane] = -1
+        for lane in range(count, width):
+            valid[lane] = 0
         if width == 1:
             _intersect1(intersect, scene, address)
         else:
