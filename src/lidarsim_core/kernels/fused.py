@@ -284,8 +284,8 @@ def ray_stage_drawn(direction, drawn, sigmas, sensor_matrix, flown, scene):  # n
         for a in range(drawn.shape[0]):
             x, y, z = turn_ray(x, y, z, drawn[a, i, 0] * sigmas[a], drawn[a, i, 1] * sigmas[a])
         flown[i, 0], flown[i, 1], flown[i, 2] = x, y, z
-        m = sensor_matrix[0] if shared else sensor_matrix[i]
-        scene[i, 0], scene[i, 1], scene[i, 2] = matvec(m, x, y, z, False)
+        scene[i, 0], scene[i, 1], scene[i, 2] = matvec_at(sensor_matrix, 0 if shared else i,
+                                                          x, y, z, False)
 
 
 @njit(nogil=True, cache=True)
@@ -299,13 +299,14 @@ def body_rays(scene, sensor_position, position, matrix, origin_out, direction_ou
     for i in range(scene.shape[0]):
         s = 0 if sensor_position.shape[0] == 1 else i
         p = 0 if position.shape[0] == 1 else i
-        m = matrix[0] if matrix.shape[0] == 1 else matrix[i]
+        k = 0 if matrix.shape[0] == 1 else i
         rx = sensor_position[s, 0] - position[p, 0]
         ry = sensor_position[s, 1] - position[p, 1]
         rz = sensor_position[s, 2] - position[p, 2]
-        origin_out[i, 0], origin_out[i, 1], origin_out[i, 2] = matvec(m, rx, ry, rz, True)
-        direction_out[i, 0], direction_out[i, 1], direction_out[i, 2] = matvec(
-            m, scene[i, 0], scene[i, 1], scene[i, 2], True)
+        origin_out[i, 0], origin_out[i, 1], origin_out[i, 2] = matvec_at(matrix, k, rx, ry, rz,
+                                                                         True)
+        direction_out[i, 0], direction_out[i, 1], direction_out[i, 2] = matvec_at(
+            matrix, k, scene[i, 0], scene[i, 1], scene[i, 2], True)
 
 
 @njit(nogil=True, cache=True)
