@@ -16,7 +16,8 @@ loops instead:
 * :mod:`.risley`: the Risley prisms' vector refraction, blocks of rays through every prism
   in one vectorised loop per prism;
   :mod:`.patterns`: firing schedules (time, slot, channel in one pass) and the spinning and
-  Lissajous directions;
+  Lissajous directions; :mod:`.groups`: the patterns' direction groups for culling before
+  their directions;
 * :mod:`.poses`: per-ray rotations of the built-in trajectories (chains of rotations at
   constant rates: tumbling, constant angular velocity; the look-at attitude);
 * :mod:`.embree_cast`: Embree's ``rtcIntersect1``/``rtcIntersect4/8/16`` called by address
@@ -100,6 +101,7 @@ def _warm_up_calls() -> list[tuple[str, Callable[[], Any], Any]]:
     from .embree_cast import cast_faces, cast_refined
     from .fused import body_rays, closest_hit, measure, normals, ray_stage, ray_stage_drawn
     from .fused_cast import cast_closest
+    from .groups import group_members, slot_groups
     from .patterns import cycle_rays, lissajous_directions, spinning_directions
     from .philox import ray_uniforms
     from .poses import chain_matrices, look_at_matrices
@@ -135,6 +137,8 @@ def _warm_up_calls() -> list[tuple[str, Callable[[], Any], Any]]:
                                              0.1 * two, two, two, two,
                                              np.array([True, False]), 1.5 * two),
          risley_directions),
+        ("direction groups", lambda: slot_groups(0, 0, 1, 1), slot_groups),
+        ("group members", lambda: group_members(index, index, index, 1, index), group_members),
         ("angular error", lambda: rotate_two_angles(one, np.zeros((1, 2))), rotate_two_angles),
         ("embree rays", lambda: embree_rays(one, one, np.zeros(3), 1.0, 1e-6), embree_rays),
         ("refinement", lambda: refine_hits(np.full(1, -1, dtype=np.int32), one, one, one, one,

@@ -18,9 +18,12 @@ Every operation is the NumPy reference's (:mod:`lidarsim_core.pipeline.cast`, th
 :func:`lidarsim_core.geometry.frames.rotate`), in the same order, without fused multiply-adds,
 so the results are the same bits. The inverse normal CDF is Cephes' ``ndtri`` as SciPy
 ships it (:func:`ndtri`: the same polynomials and the C library's ``log`` and ``sqrt``); the
-tests compare it with ``scipy.special.ndtri`` on millions of uniforms. The work per pulse is
-in ``inline`` helpers (:func:`~lidarsim_core.kernels.rotation.turn_ray`, :func:`matvec`), so that a loop over blocks of rays
-can later call Embree between the two halves without another pass over memory.
+tests compare it with ``scipy.special.ndtri`` on millions of uniforms. The kernels go over
+blocks of :data:`BLOCK` rays, each step a loop of its own over the block (the Philox words,
+the normals by :func:`ndtri_block`, the C library's sines and cosines, the turns), so that
+the steps of neighbouring rays overlap where one ray at a time would wait on each operation
+(the inverse CDF's Horner chains, the C library's calls); every ray still sees the same
+operations in the same order.
 """
 
 from __future__ import annotations
@@ -193,22 +196,10 @@ def normals(key, ray_index, draws):  # noqa: ANN001, ANN201
 
 
 @njit(inline="always", cache=True)
-def matvec(m, x, y, z, inverse):  # noqa: ANN001, ANN201
-    """``M v`` (or ``Mᵀ v``) of one 3×3 matrix, summed as
-    :func:`lidarsim_core.geometry.frames.rotate` does: ``(x·a + y·b) + z·c``."""
-    if inverse:
-        return ((x * m[0, 0] + y * m[1, 0]) + z * m[2, 0],
-                (x * m[0, 1] + y * m[1, 1]) + z * m[2, 1],
-                (x * m[0, 2] + y * m[1, 2]) + z * m[2, 2])
-    return ((x * m[0, 0] + y * m[0, 1]) + z * m[0, 2],
-            (x * m[1, 0] + y * m[1, 1]) + z * m[1, 2],
-            (x * m[2, 0] + y * m[2, 1]) + z * m[2, 2])
-
-
-@njit(inline="always", cache=True)
-def matvec_at(m, k, x, y, z, inverse):  # noqa: ANN001, ANN201
-    """:func:`matvec` of the matrix ``m[k]`` of an (N, 3, 3) array, read in place (a view
-    ``m[k]`` per ray costs a reference count in a loop)."""
+def matvec(m, k, x, y, z, inverse):  # noqa: ANN001, ANN201
+    """``M v`` (or ``Mᵀ v``) of the 3×3 matrix ``M = m[k]`` of an (N, 3, 3) array, summed as
+    :func:`lidarsim_core.geometry.frames.rotate` does: ``(x·a + y·b) + z·c``. The matrix is
+    read in place: a view ``m[k]`` per ray would cost a reference count in the loops."""
     if inverse:
         return ((x * m[k, 0, 0] + y * m[k, 1, 0]) + z * m[k, 2, 0],
                 (x * m[k, 0, 1] + y * m[k, 1, 1]) + z * m[k, 2, 1],
@@ -268,7 +259,7 @@ def ray_stage(direction, ray_index, keys, sigmas, sensor_matrix, flown, scene): 
                     flown[i, 0], flown[i, 1], flown[i, 2], c1[j], s1[j], c2[j], s2[j])
         for j in range(m):
             i = lo + j
-            scene[i, 0], scene[i, 1], scene[i, 2] = matvec_at(
+            scene[i, 0], scene[i, 1], scene[i, 2] = matvec(
                 sensor_matrix, 0 if shared else i, flown[i, 0], flown[i, 1], flown[i, 2], False)
 
 
@@ -284,8 +275,8 @@ def ray_stage_drawn(direction, drawn, sigmas, sensor_matrix, flown, scene):  # n
         for a in range(drawn.shape[0]):
             x, y, z = turn_ray(x, y, z, drawn[a, i, 0] * sigmas[a], drawn[a, i, 1] * sigmas[a])
         flown[i, 0], flown[i, 1], flown[i, 2] = x, y, z
-        scene[i, 0], scene[i, 1], scene[i, 2] = matvec_at(sensor_matrix, 0 if shared else i,
-                                                          x, y, z, False)
+        scene[i, 0], scene[i, 1], scene[i, 2] = matvec(sensor_matrix, 0 if shared else i,
+                                                       x, y, z, False)
 
 
 @njit(nogil=True, cache=True)
@@ -303,9 +294,9 @@ def body_rays(scene, sensor_position, position, matrix, origin_out, direction_ou
         rx = sensor_position[s, 0] - position[p, 0]
         ry = sensor_position[s, 1] - position[p, 1]
         rz = sensor_position[s, 2] - position[p, 2]
-        origin_out[i, 0], origin_out[i, 1], origin_out[i, 2] = matvec_at(matrix, k, rx, ry, rz,
-                                                                         True)
-        direction_out[i, 0], direction_out[i, 1], direction_out[i, 2] = matvec_at(
+        origin_out[i, 0], origin_out[i, 1], origin_out[i, 2] = matvec(matrix, k, rx, ry, rz,
+                                                                      True)
+        direction_out[i, 0], direction_out[i, 1], direction_out[i, 2] = matvec(
             matrix, k, scene[i, 0], scene[i, 1], scene[i, 2], True)
 
 

@@ -22,7 +22,7 @@ import numpy as np
 from numba import njit
 
 from .embree_cast import _aligned_words, _intersect1, _intersect_packet, _rayhit_buffer, _set_ray
-from .fused import matvec, matvec_at
+from .fused import matvec
 from .raycast import plane_distance
 
 _INVALID = np.uint32(0xFFFFFFFF)
@@ -66,8 +66,7 @@ def cast_closest(intersect, scene, width, fields, directions, sensor_position, p
     # one pose for every ray (a still scene): the body-frame origin is the same for all
     still = sensor_position.shape[0] == 1 and position.shape[0] == 1 and one_matrix
     cx, cy, cz = -centre[0], -centre[1], -centre[2]
-    m = matrix[0]
-    sx, sy, sz = matvec(m, sensor_position[0, 0] - position[0, 0],
+    sx, sy, sz = matvec(matrix, 0, sensor_position[0, 0] - position[0, 0],
                         sensor_position[0, 1] - position[0, 1],
                         sensor_position[0, 2] - position[0, 2], True)
     for start in range(0, n, width):
@@ -76,17 +75,17 @@ def cast_closest(intersect, scene, width, fields, directions, sensor_position, p
             i = start + lane
             if still:
                 ox, oy, oz = sx, sy, sz
-                dx, dy, dz = matvec(m, directions[i, 0], directions[i, 1], directions[i, 2],
-                                    True)
+                dx, dy, dz = matvec(matrix, 0, directions[i, 0], directions[i, 1],
+                                    directions[i, 2], True)
             else:
                 s = 0 if sensor_position.shape[0] == 1 else i
                 p = 0 if position.shape[0] == 1 else i
                 k = 0 if one_matrix else i
-                ox, oy, oz = matvec_at(matrix, k, sensor_position[s, 0] - position[p, 0],
-                                       sensor_position[s, 1] - position[p, 1],
-                                       sensor_position[s, 2] - position[p, 2], True)
-                dx, dy, dz = matvec_at(matrix, k, directions[i, 0], directions[i, 1],
-                                       directions[i, 2], True)
+                ox, oy, oz = matvec(matrix, k, sensor_position[s, 0] - position[p, 0],
+                                    sensor_position[s, 1] - position[p, 1],
+                                    sensor_position[s, 2] - position[p, 2], True)
+                dx, dy, dz = matvec(matrix, k, directions[i, 0], directions[i, 1],
+                                    directions[i, 2], True)
             body[lane, 0], body[lane, 1], body[lane, 2] = ox, oy, oz
             body[lane, 3], body[lane, 4], body[lane, 5] = dx, dy, dz
             rx, ry, rz = ox + cx, oy + cy, oz + cz

@@ -14,6 +14,7 @@ from typing import Any, Callable, Mapping
 
 import numpy as np
 
+from .. import kernels
 from ..base.arrays import take_rows
 from ..base.components import Component
 from ..base.errors import UserInputError
@@ -83,12 +84,19 @@ def cycle_groups(index: np.ndarray, size: int, cycles: int, angle: float
     ``k mod size``): a group per slot and block of ``cycles`` cycles, its representative the
     middle ray, so no ray is more than ``cycles // 2`` cycles from it. ``angle`` bounds
     the angle between two rays of one slot that many cycles apart (the pattern's bound; see
-    :meth:`ScanPattern.direction_groups`). None unless ``index`` is consecutive."""
+    :meth:`ScanPattern.direction_groups`). None unless ``index`` is consecutive. Made by
+    :mod:`lidarsim_core.kernels.groups` where the kernels are on."""
     index = np.asarray(index, dtype=np.int64)
     n = len(index)
     if n == 0 or index[-1] - index[0] != n - 1:
         return None
     first, last = int(index[0]), int(index[-1])
+    if kernels.enabled():
+        from ..kernels.groups import group_members, slot_groups
+
+        representative, low, high, slot = slot_groups(first, last, size, cycles)
+        return DirectionGroups(representative, angle, lambda groups: group_members(
+            low, high, slot, size, np.ascontiguousarray(groups, dtype=np.int64)))
     block0 = first // size // cycles
     blocks = last // size // cycles - block0 + 1
     block = np.repeat(np.arange(block0, block0 + blocks, dtype=np.int64), size)

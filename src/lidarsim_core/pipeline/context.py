@@ -9,6 +9,7 @@ simulation itself, so each piece can be read, tested and replaced on its own.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -119,6 +120,14 @@ class RunContext:
     keep_normals: bool
     _fixed_poses: dict[tuple[int, float | None], PoseMatrices] = field(
         default_factory=dict, repr=False)
+
+    @cached_property
+    def config_hash(self) -> str:
+        """The scenario's :meth:`~lidarsim_core.scenario.model.Scenario.config_hash`, made
+        once: every frame's metadata carries it (a JSON dump and a SHA-256 of the scenario,
+        ~40 µs a frame that held the GIL), and like every other part of the context it is
+        the scenario's as the run was resolved."""
+        return self.scenario.config_hash()
 
     @property
     def rays_per_pulse(self) -> int:

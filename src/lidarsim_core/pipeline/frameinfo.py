@@ -81,7 +81,7 @@ def frame_infos(ctx: RunContext, frames: Sequence[int], measurement: dict[str, A
     times = np.array([t for interval in intervals for t in interval], dtype=np.float64)
     made = (None if records is None else records.at(times)) or pose_records(ctx, times, poses)
     sensor_rec, scene_rec, inside_rec = made.sensor, made.scene, made.inside
-    config_hash = ctx.scenario.config_hash()
+    config_hash = ctx.config_hash
     noise = [m.name for m in ctx.noise]
     names = [t.name for t in ctx.targets]
     infos = []
