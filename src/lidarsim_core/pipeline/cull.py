@@ -113,7 +113,7 @@ class PulseCuller:
 
     margin_rad: float
     #: Cube maps of reachable directions by pose (:meth:`keep`), newest last.
-    _grids: dict[bytes, np.ndarray | None] = field(default_factory=dict, compare=False,
+    _grids: dict[Any, Any] = field(default_factory=dict, compare=False,
                                                    repr=False)
     #: Plans with a wider margin, by the extra angle (:meth:`widened`).
     _wider: dict[float, "PulseCuller"] = field(default_factory=dict, compare=False,
@@ -174,8 +174,8 @@ class PulseCuller:
         # the pose comes again (a still scene: the map is kept)
         still = all(tr.is_static for tr in
                     [ctx.sensor_trajectory] + [target.trajectory for target in ctx.targets])
-        grid = self._pose_grid(posed, 0, [0.0] * len(trees), trees,
-                               CULL_TREE_LEVELS if still else MOVING_GRID_LEVELS)
+        grid = self._still_grid(posed, trees) if still else self._pose_grid(
+            posed, 0, [0.0] * len(trees), trees, MOVING_GRID_LEVELS)
         if grid is None:  # the sensor is inside a target's box: nothing to cull
             return np.arange(len(batch), dtype=np.int64)
         return cull_by_grid(directions, grid)
@@ -343,6 +343,25 @@ class PulseCuller:
             return self._moving_blocks(posed, trees, start, middle, splits + 1) + \
                 self._moving_blocks(posed, trees, middle, stop, splits + 1)
         return [(start, stop, grid)]
+
+    def _still_grid(self, posed: PiecePoses, trees: list[CullTree]) -> np.ndarray | None:
+        """:meth:`_pose_grid` of a still scene, looked up by its pose arrays: the run's context
+        gives every piece the same ones (it looks a static trajectory's pose up once), so the
+        map is found without the ~15 small NumPy calls that make the key of a pose (they held
+        the GIL that other threads' pieces wait for). The arrays are kept with the map, so an
+        identity cannot be reused while it is cached."""
+        poses = tuple(a for p in (posed.sensor, *posed.targets) for a in (p.position, p.matrix))
+        key = ("still", *(id(a) for a in poses))
+        with _grids_lock:
+            found = self._grids.get(key)
+        if found is not None and all(a is b for a, b in zip(found[1], poses)):
+            return found[0]
+        grid = self._pose_grid(posed, 0, [0.0] * len(trees), trees, CULL_TREE_LEVELS)
+        with _grids_lock:
+            if len(self._grids) >= 16:
+                self._grids.pop(next(iter(self._grids)))
+            self._grids[key] = (grid, poses)
+        return grid
 
     def _pose_grid(self, posed: PiecePoses, k: int, motion: list[float],
                    trees: list[CullTree], levels: int) -> np.ndarray | None:

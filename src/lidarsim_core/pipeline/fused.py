@@ -112,6 +112,7 @@ class FusedPath:
         #: Whether the normals are the Ziggurat's (else the seed paper's inverse CDF).
         self.ziggurat = ctx.scenario.normals != INVERSE_CDF
         self._compiled: list[CompiledCast] | None | bool = False  # False: not asked yet
+        self._cached: tuple[tuple, tuple] | None = None  # (frame, parameters), _parameters
 
     @property
     def compiled(self) -> list[CompiledCast] | None:
@@ -139,6 +140,20 @@ class FusedPath:
         return cls(ctx)
 
     # ---- the halves, for the pipeline and the benchmark ------------------------------------
+    def _parameters(self, contexts: list[NoiseContext]) -> tuple[tuple[np.ndarray, ...],
+                                                                 tuple[np.ndarray, ...]]:
+        """:meth:`_keys` of the angular errors and :meth:`_range_models` for the frame of
+        ``contexts``, made once a frame: its pieces share them (their streams' keys and the
+        models' parameters), and a piece's Python steps hold the GIL that the other threads'
+        pieces wait for."""
+        frame = tuple((c.seed, c.frame, c.stream) for c in contexts)
+        cached = self._cached
+        if cached is None or cached[0] != frame:
+            cached = (frame, (self._keys(self.angular, contexts),
+                              self._range_models(contexts)))
+            self._cached = cached  # one assignment: a thread reads the old or the new pair
+        return cached[1]
+
     def _keys(self, models: list[int], contexts: list[NoiseContext]
               ) -> tuple[np.ndarray, np.ndarray]:
         """Philox keys and σ (rad) of the chain's angular errors that turn rays."""
@@ -187,7 +202,7 @@ class FusedPath:
         from ..kernels.fused import body_rays, ray_stage
 
         n = len(batch)
-        keys, sigmas = self._keys(self.angular, contexts)
+        keys, sigmas = self._parameters(contexts)[0]
         posed = piece_poses(self.ctx, batch, t_frame)
         flown, scene = np.empty((n, 3)), np.empty((n, 3))
         direction = np.ascontiguousarray(batch.direction, dtype=np.float64)
@@ -257,7 +272,7 @@ class FusedPath:
         points."""
         from ..kernels.fused import RANGE_GAUSSIAN, measure
 
-        kinds, keys, params = self._range_models(contexts)
+        kinds, keys, params = self._parameters(contexts)[1]
         range_min, range_max = float(self.ctx.sensor.range_min_m), float(self.ctx.range_limit)
         index = np.ascontiguousarray(rays.batch.index, dtype=np.int64)
         drawn = np.empty((len(kinds), 0))
