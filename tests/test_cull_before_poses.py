@@ -243,7 +243,7 @@ def test_a_spinning_pattern_is_culled_by_groups_before_its_directions(monkeypatc
     casting every pulse."""
     from lidarsim_core.pipeline import cull
 
-    sim = Simulation(scenario_from_dict(_suite("vlp16-circling-15m", 0.3)))
+    sim = Simulation(scenario_from_dict(_suite("vlp16-circling-15m", 0.4)))
     ctx = sim.context
     k0, k1 = sim.frame_rays(0)
     index = np.arange(k0, k1)
@@ -304,10 +304,33 @@ def test_a_risley_bound_is_refused_where_its_grid_is_too_coarse(monkeypatch):
     from lidarsim_core.patterns import risley
 
     monkeypatch.setitem(risley.SPEED_STEPS, 2, 4)
+    monkeypatch.setattr(risley, "_TURN_RATES", {})  # bounds made earlier in this process
     data = _suite("static-risley", 0.3)
     pattern = Simulation(scenario_from_dict(data)).pattern
     assert pattern.max_turn_rate() is None
     assert pattern.direction_groups(np.arange(1000)) is None
+
+
+def test_a_risley_bound_is_made_once_per_prism_stack(monkeypatch):
+    """Two patterns of one sensor (a dataset's sequences) share the sampled bound; another
+    prism stack gets its own."""
+    from lidarsim_core.patterns import risley
+
+    monkeypatch.setattr(risley, "_TURN_RATES", {})
+    sampled = []
+    original = risley.RisleyPattern._sampled_turn_rate
+
+    def counting(self):
+        sampled.append(self.options.prisms[0].wedge_deg)
+        return original(self)
+
+    monkeypatch.setattr(risley.RisleyPattern, "_sampled_turn_rate", counting)
+    rates = []
+    for datasheet in ("livox-mid70", "livox-mid70", "livox-mid40"):
+        data = _suite("static-risley", 0.1)
+        data["sensor"]["datasheet"] = datasheet
+        rates.append(Simulation(scenario_from_dict(data)).pattern.max_turn_rate())
+    assert len(sampled) == 2 and rates[0] == rates[1] != rates[2]
 
 
 @pytest.mark.parametrize("scene", ["static-demo", "tumbling-fixed-risley", "flyaround-50m"])
@@ -318,7 +341,7 @@ def test_rose_and_risley_frames_are_culled_by_groups_before_their_directions(sce
     kept ones, and the frame equals the one cast on every pulse, column by column."""
     from lidarsim_core.pipeline import cull
 
-    sim = Simulation(scenario_from_dict(_suite(scene, 0.2)))
+    sim = Simulation(scenario_from_dict(_suite(scene, 0.5)))
     ctx = sim.context
     k0, k1 = sim.frame_rays(0)
     index = np.arange(k0, k1)

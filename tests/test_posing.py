@@ -129,9 +129,9 @@ def test_a_subclass_overriding_poses_at_and_plugins_take_the_general_path():
 def test_poses_are_computed_once_per_piece_and_the_frame_matches_the_scipy_path(monkeypatch):
     """The tumbling hold: trajectories are evaluated twice per piece (once at the piece's
     middle time for culling, once at the times of the pulses it keeps; once without the
-    kernels, which do not cull), three times when the pattern groups its rays (the groups'
-    cull at the piece's middle time too), and the points agree with the SciPy path of
-    ``poses_at`` to 1e-12 m."""
+    kernels, which do not cull; pieces of 4,096 pulses are too short for direction groups,
+    whose cull would evaluate them at the piece's middle time again), and the points agree
+    with the SciPy path of ``poses_at`` to 1e-12 m."""
     import lidarsim_core.trajectories.matrices as posing
 
     scenario = load_scenario(EXAMPLES / "envisat_tumbling_hold.yaml")
@@ -148,10 +148,8 @@ def test_poses_are_computed_once_per_piece_and_the_frame_matches_the_scipy_path(
     fast = sim.run_frame(0, chunk_rays=4096)
     k0, k1 = sim.frame_rays(0)
     pieces = -(-(k1 - k0) // 4096)
-    # sensor and target, twice per piece each when culling, three times with direction
-    # groups (without the kernels: once)
-    grouped = sim.pattern.direction_groups(np.arange(2)) is not None
-    assert calls["n"] == (2 if sim.culler is None else 6 if grouped else 4) * pieces
+    # sensor and target, twice per piece each when culling (without the kernels: once)
+    assert calls["n"] == (2 if sim.culler is None else 4) * pieces
 
     monkeypatch.setattr(posing, "has_fast_path", lambda trajectory: False)
     reference = Simulation(scenario).run_frame(0, chunk_rays=4096)

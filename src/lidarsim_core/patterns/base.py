@@ -117,6 +117,13 @@ def cycle_groups(index: np.ndarray, size: int, cycles: int, angle: float
     return DirectionGroups((low + high) // 2 * size + slot, angle, members)
 
 
+def power_of_two_above(x: float) -> float:
+    """The least power of two ``>= x`` (1 for ``x <= 1``): a pattern's groups round the scan
+    time in their angle's rounding term up to it, so that the pieces of a scan share a few
+    angles, and the cull one cube map per angle."""
+    return 2.0 ** max(0, math.ceil(math.log2(x))) if x > 1.0 else 1.0
+
+
 class ScanPattern(Component):
     """A scan pattern bound to one sensor datasheet.
 

@@ -29,6 +29,7 @@ wedges on the entrance face. The catalogue datasheets record these choices as es
 from __future__ import annotations
 
 import math
+import threading
 from functools import cached_property
 from typing import Any, Literal
 
@@ -39,7 +40,7 @@ from .. import kernels
 from ..base.components import ComponentOptions
 from ..base.errors import ConfigError, PluginError
 from ..hookspecs import hookimpl
-from .base import DirectionGroups, RayBatch, cycle_groups
+from .base import DirectionGroups, RayBatch, cycle_groups, power_of_two_above
 from .geometry import directions_from_az_el, off_axis_angle
 from .optics import refract, tilted_normal
 from .timing import CycleTimedPattern, FiringCycle
@@ -57,6 +58,9 @@ SPEED_STEPS = {1: 4096, 2: 256, 3: 32, 4: 16}
 #: Largest correction for the grid's step, relative to the largest speed sampled, above which
 #: the grid is judged too coarse for the prisms and the rays are not grouped.
 SPEED_CORRECTION_LIMIT = 0.25
+#: :meth:`RisleyPattern.max_turn_rate` by the pattern's options (JSON), for this process.
+_TURN_RATES: dict[str, float | None] = {}
+_TURN_RATES_LOCK = threading.Lock()
 
 
 class PrismSpec(ComponentOptions):
@@ -229,6 +233,20 @@ class RisleyPattern(CycleTimedPattern):
 
     @cached_property
     def _turn_rate(self) -> float | None:
+        # the options decide the bound: patterns built again for the same sensor (a dataset's
+        # sequences, the workers' copies) look it up
+        key = self.options.model_dump_json()
+        with _TURN_RATES_LOCK:
+            if key in _TURN_RATES:
+                return _TURN_RATES[key]
+        rate = self._sampled_turn_rate()
+        with _TURN_RATES_LOCK:
+            if len(_TURN_RATES) >= 64:
+                _TURN_RATES.clear()
+            _TURN_RATES[key] = rate
+        return rate
+
+    def _sampled_turn_rate(self) -> float | None:
         prisms = self.options.prisms
         omega = 2.0 * np.pi * np.array([p.rotor_hz for p in prisms])
         if not np.any(omega):
@@ -288,8 +306,10 @@ class RisleyPattern(CycleTimedPattern):
         rate = self.max_turn_rate()
         if rate is None:
             return None
-        last = float(self.time_of_index(index[-1:])[0])
-        rounding = rate * abs(last) * 2.0 ** -48  # the rolls' mod(rate · t, 1), a few ulp of t
+        # the rolls' mod(rate · t, 1): a few ulp of t, t rounded up to a power of two so that
+        # a scan's pieces share a few angles (and the cull its cube maps: one per angle)
+        last = power_of_two_above(abs(float(self.time_of_index(index[-1:])[0])))
+        rounding = rate * last * 2.0 ** -48
         cycles = GROUP_CYCLES
         while cycles > 2 and rate * self.cycle.period_s * (cycles // 2) > GROUP_ANGLE:
             cycles //= 2

@@ -22,7 +22,7 @@ from pydantic import Field
 from .. import kernels
 from ..base.components import ComponentOptions
 from ..hookspecs import hookimpl
-from .base import DirectionGroups, RayBatch, ScanPattern, cycle_groups
+from .base import DirectionGroups, RayBatch, ScanPattern, cycle_groups, power_of_two_above
 from .geometry import directions_from_off_axis
 
 
@@ -110,7 +110,9 @@ class RosePattern(ScanPattern):
         index = np.asarray(index, dtype=np.int64)
         if len(index) == 0 or type(self).time_of_index is not ScanPattern.time_of_index:
             return None
-        turns = float(index[-1]) / self.rate_hz / self.options.turn_period_s
+        # the turn count rounded up to a power of two, so that a scan's pieces share a few
+        # angles (and the cull its cube maps: one per angle)
+        turns = power_of_two_above(float(index[-1]) / self.rate_hz / self.options.turn_period_s)
         rounding = 2.0 * math.pi * (self.amplitude_rad * self.options.b + 1.0) * turns * 2.0 ** -50
         angle = self.max_turn_rate() * (GROUP_RAYS // 2) / self.rate_hz
         return cycle_groups(index, 1, GROUP_RAYS, angle * (1.0 + 1e-9) + rounding + 1e-9)
