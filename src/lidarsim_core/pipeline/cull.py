@@ -117,9 +117,9 @@ class PulseCuller:
     """
 
     margin_rad: float
-    #: Cube maps of reachable directions by pose (:meth:`keep`), newest last.
-    _grids: dict[Any, Any] = field(default_factory=dict, compare=False,
-                                                   repr=False)
+    #: Cube maps of reachable directions by pose (:meth:`keep`), newest last; a still
+    #: scene's by its pose arrays' identity, with the arrays (:meth:`_still_grid`).
+    _grids: dict[Any, Any] = field(default_factory=dict, compare=False, repr=False)
     #: Plans with a wider margin, by the extra angle (:meth:`widened`).
     _wider: dict[float, "PulseCuller"] = field(default_factory=dict, compare=False,
                                                repr=False)
