@@ -78,14 +78,17 @@ class DirectionGroups:
     members: Callable[[np.ndarray], np.ndarray]
 
 
-def cycle_groups(index: np.ndarray, size: int, cycles: int, angle: float
-                 ) -> DirectionGroups | None:
+def cycle_groups(index: np.ndarray, size: int, cycles: int, angle: float,
+                 rounding: float = 0.0) -> DirectionGroups | None:
     """Direction groups of a pattern that fires ``size`` slots per cycle (ray ``k`` in slot
     ``k mod size``): a group per slot and block of ``cycles`` cycles, its representative the
     middle ray, so no ray is more than ``cycles // 2`` cycles from it. ``angle`` bounds
     the angle between two rays of one slot that many cycles apart (the pattern's bound; see
-    :meth:`ScanPattern.direction_groups`). None unless ``index`` is consecutive. Made by
+    :meth:`ScanPattern.direction_groups`) and ``rounding`` how far the computed directions
+    may stray from the exact ones; the groups' angle is ``angle`` grown by ``1e-9`` of it,
+    ``rounding`` and a nanoradian. None unless ``index`` is consecutive. Made by
     :mod:`lidarsim_core.kernels.groups` where the kernels are on."""
+    angle = angle * (1.0 + 1e-9) + rounding + 1e-9
     index = np.asarray(index, dtype=np.int64)
     n = len(index)
     if n == 0 or index[-1] - index[0] != n - 1:

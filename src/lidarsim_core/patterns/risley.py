@@ -314,8 +314,7 @@ class RisleyPattern(CycleTimedPattern):
         while cycles > 2 and rate * self.cycle.period_s * (cycles // 2) > GROUP_ANGLE:
             cycles //= 2
         angle = rate * self.cycle.period_s * (cycles // 2)
-        return cycle_groups(index, self.cycle.size, cycles,
-                            angle * (1.0 + 1e-9) + rounding + 1e-9)
+        return cycle_groups(index, self.cycle.size, cycles, angle, rounding)
 
 
 @hookimpl

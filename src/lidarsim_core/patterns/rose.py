@@ -115,7 +115,7 @@ class RosePattern(ScanPattern):
         turns = power_of_two_above(float(index[-1]) / self.rate_hz / self.options.turn_period_s)
         rounding = 2.0 * math.pi * (self.amplitude_rad * self.options.b + 1.0) * turns * 2.0 ** -50
         angle = self.max_turn_rate() * (GROUP_RAYS // 2) / self.rate_hz
-        return cycle_groups(index, 1, GROUP_RAYS, angle * (1.0 + 1e-9) + rounding + 1e-9)
+        return cycle_groups(index, 1, GROUP_RAYS, angle, rounding)
 
 
 @hookimpl

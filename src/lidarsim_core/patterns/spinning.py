@@ -125,7 +125,7 @@ class SpinningPattern(CycleTimedPattern):
         are at most ``Δ cos e <= Δ`` apart."""
         angle = 2.0 * math.pi * self.options.rotation_hz * self.cycle.period_s * \
             (GROUP_CYCLES // 2)
-        return cycle_groups(index, self.cycle.size, GROUP_CYCLES, angle * (1.0 + 1e-9) + 1e-9)
+        return cycle_groups(index, self.cycle.size, GROUP_CYCLES, angle)
 
     def max_off_axis_rad(self) -> float:
         return math.pi
