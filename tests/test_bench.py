@@ -85,7 +85,8 @@ SUITE = {"duration_s": 0.1, "rounds": 2, "scenes": {"tumbling-risley": {
                 "tumbling_over_static_risley": 0.7, "risley_over_rose_static": None},
     "dataset": {"frames": 20, "in_memory_frames_per_s": 50.0, "dataset_frames_per_s": 45.0,
                 "dataset_over_in_memory": 0.9},
-    "startup": {"import_to_first_frame_s": 0.8, "import_to_first_frame_cpu_s": 0.7}}
+    "startup": {"import_to_first_frame_s": 0.8, "import_to_first_frame_cpu_s": 0.7,
+                "dependencies_s": 0.6, "lidarsim_s": 0.2}}
 
 
 @pytest.mark.parametrize("as_json", [True, False])
@@ -106,7 +107,8 @@ def test_cli_prints_the_benchmark(monkeypatch, as_json, with_suite):
                          "17.00M (1t)",
                          "poses 30", "0.70 (Risley)",
                          "before_cast 11", "general path's measurement: 33",
-                         "45.0 frames/s", "first frame: 0.80 s"):
+                         "45.0 frames/s", "first frame: 0.80 s", "libraries alone: 0.60 s",
+                         "lidarsim: 0.20 s"):
                 assert text in result.output, text
 
 
@@ -192,6 +194,13 @@ def test_startup_is_measured_in_a_new_process_that_compiles_nothing():
     assert start["kernels_compiled"] == []  # the kernels came from the disk cache
     assert 0 < start["first_frame_s"] < start["import_to_first_frame_s"]
     assert 0 < start["import_to_first_frame_cpu_s"]
+    # the libraries' own share, in a process that loads its one kernel from the cache too
+    floor = start["dependencies"]
+    assert floor["kernels_compiled"] == []
+    assert 0 < floor["imports_s"] and 0 < floor["numba_first_call_s"]
+    assert math.isclose(start["dependencies_s"], floor["imports_s"] + floor["numba_first_call_s"])
+    assert math.isclose(start["lidarsim_s"],
+                        start["import_to_first_frame_s"] - start["dependencies_s"])
 
 
 def test_warm_up_rounds_are_interleaved_and_not_timed():

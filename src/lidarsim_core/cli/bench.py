@@ -154,3 +154,6 @@ def _print_suite(console: Any, suite: dict[str, Any], threads: int) -> None:
         console.print(f"A new process, from import to the demo's first frame: "
                       f"{start['import_to_first_frame_s']:.2f} s "
                       f"({start['import_to_first_frame_cpu_s']:.2f} s of CPU; goal 1 s).")
+        if start.get("dependencies_s") is not None:
+            console.print(f"  The libraries alone: {start['dependencies_s']:.2f} s (imports, "
+                          f"numba's set-up); lidarsim: {start['lidarsim_s']:.2f} s.")
