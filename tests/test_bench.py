@@ -76,6 +76,8 @@ SUITE = {"duration_s": 0.1, "rounds": 2, "scenes": {"tumbling-risley": {
     "simulate_over_bare": 0.1, "simulate_over_bare_1thread": 0.125,
     "bare_embree_packets": 3.2e7, "bare_embree_packets_1thread": 1.7e7,
     "simulate_over_packets": 0.0625, "simulate_over_packets_1thread": 0.0875,
+    "compiled_1thread_s": 0.0025, "profiled_frame_1thread_s": 0.004,
+    "bare_over_compiled_1thread": 0.33,
     "stages_1thread": {"ns_per_ray": {"pattern": 40, "poses": 30, "cull": 20, "cast": 20,
                                       "measurement": 60, "record": 10},
                        "pulses_after_cull": 0.16,
@@ -108,7 +110,7 @@ def test_cli_prints_the_benchmark(monkeypatch, as_json, with_suite):
                          "poses 30", "0.70 (Risley)",
                          "before_cast 11", "general path's measurement: 33",
                          "45.0 frames/s", "first frame: 0.80 s", "libraries alone: 0.60 s",
-                         "lidarsim: 0.20 s"):
+                         "lidarsim: 0.20 s", "kernels alone: 2.50 ms", "them 0.33"):
                 assert text in result.output, text
 
 
@@ -132,6 +134,11 @@ def test_suite_scene_figures_are_consistent():
     cast = {"cast_in_loop"} if binding_status()[0] else {"cast", "closest"}
     assert set(fused) == {"before_cast", *cast, "measure", "columns", "general_measurement"}
     assert all(v > 0 for v in fused.values())
+    # the kernels' own time is part of the profiled frame; bare Embree over it is the ceiling
+    assert 0 < scene["compiled_1thread_s"] < scene["profiled_frame_1thread_s"]
+    if scene["bare_embree_1thread"] is not None:
+        assert math.isclose(scene["bare_over_compiled_1thread"],
+                            1000 / scene["bare_embree_1thread"] / scene["compiled_1thread_s"])
     for suffix in ("", "_1thread"):
         bare = scene[f"bare_embree{suffix}"]
         if bare is None:
@@ -201,6 +208,23 @@ def test_startup_is_measured_in_a_new_process_that_compiles_nothing():
     assert math.isclose(start["dependencies_s"], floor["imports_s"] + floor["numba_first_call_s"])
     assert math.isclose(start["lidarsim_s"],
                         start["import_to_first_frame_s"] - start["dependencies_s"])
+
+
+def test_compiled_share_counts_the_kernels_and_nothing_else(monkeypatch):
+    """The profiler charges the compiled kernels' calls to them: a frame with the kernels
+    has some, the same frame on the NumPy path (no kernel called) has none."""
+    pytest.importorskip("numba")
+    from lidarsim_core.bench.compiled import compiled_share
+    from lidarsim_core.pipeline import Simulation
+    from lidarsim_core.scenario import demo_scenario
+
+    monkeypatch.setenv("LIDARSIM_THREADS", "1")  # the profiler sees the calling thread only
+    share = compiled_share(Simulation(demo_scenario(duration_s=0.02)), rounds=2)
+    assert 0 < share["compiled_s"] < share["profiled_frame_s"]
+    monkeypatch.setenv("LIDARSIM_KERNELS", "numpy")
+    share = compiled_share(Simulation(demo_scenario(duration_s=0.02, backend="numpy")),
+                           rounds=1)
+    assert share["compiled_s"] == 0 and share["profiled_frame_s"] > 0
 
 
 def test_warm_up_rounds_are_interleaved_and_not_timed():

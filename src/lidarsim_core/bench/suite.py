@@ -21,7 +21,10 @@ its threads and its calling thread (:mod:`lidarsim_core.pipeline.balance`):
   the simulation over it;
 * ``stages_1thread``: nanoseconds per emitted ray of each stage on one thread (pattern, poses,
   cull, cast, measurement, record; :func:`suite_stages`), and where the scene runs the fast
-  path (:mod:`lidarsim_core.pipeline.fused`), its own parts under ``fused`` (:func:`fused_stages`).
+  path (:mod:`lidarsim_core.pipeline.fused`), its own parts under ``fused`` (:func:`fused_stages`);
+* ``compiled_1thread_s``: the compiled kernels' own time in the frame on one thread
+  (:func:`lidarsim_core.bench.compiled.compiled_share`), and ``bare_over_compiled_1thread``,
+  bare Embree's time over it: the highest ``simulate_over_bare_1thread`` the kernels allow.
 
 :func:`bench_dataset` compares a serial ``lidarsim dataset`` run on a tumbling sequence with
 simulating the same frames in memory.
@@ -39,6 +42,7 @@ import numpy as np
 
 from ..base.threads import worker_threads
 from ..pipeline.cast import process_piece, pulse_frames
+from .compiled import compiled_share
 from .startup import bench_startup
 from .timing import (add_packet_columns, bare_embree_probe, interleaved_best,
                      packet_embree_probe, threads_env, with_threads)
@@ -379,6 +383,13 @@ def bench_suite_scene(name: str, *, duration_s: float = 1.0, rounds: int = 5,
     add_packet_columns(result, rate)
     if stages:
         result["stages_1thread"] = suite_stages(sim, rounds=max(2, rounds // 2))
+        # the compiled kernels' own time: the floor of a frame on one thread
+        floor = threads_env(1, lambda: compiled_share(sim, rounds=max(2, rounds)))()
+        result["compiled_1thread_s"] = floor["compiled_s"]
+        result["profiled_frame_1thread_s"] = floor["profiled_frame_s"]
+        bare = result["bare_embree_1thread"]
+        result["bare_over_compiled_1thread"] = \
+            emitted / bare / floor["compiled_s"] if bare and floor["compiled_s"] > 0 else None
     return result
 
 

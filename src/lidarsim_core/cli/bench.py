@@ -123,6 +123,10 @@ def _print_suite(console: Any, suite: dict[str, Any], threads: int) -> None:
                 console.print("  fast path, ns per emitted ray: " + ", ".join(
                     f"{k} {v:.0f}" for k, v in fused.items() if k != "general_measurement")
                     + f" (the general path's measurement: {fused['general_measurement']:.0f})")
+        if s.get("bare_over_compiled_1thread") is not None:
+            console.print(f"  compiled kernels alone: {1e3 * s['compiled_1thread_s']:.2f} ms a "
+                          "frame; bare over them "
+                          f"{_ratio(s['bare_over_compiled_1thread'])} (the 1t s/b ceiling)")
     targets = suite.get("targets", {})
     console.print("Targets: lowest sim/bare "
                   f"{_ratio(targets.get('min_simulate_over_bare'))} (goal 0.5); tumbling over "
