@@ -5,8 +5,8 @@ numba's dispatchers report their calls to Python's profiler, so :mod:`cProfile` 
 kernel call to the kernel's own function, its time spent in compiled code (and the few
 microseconds of the dispatcher's type check). The benchmark sets that against bare Embree's
 time on the same rays: ``bare_over_compiled_1thread`` is the highest ``simulate_over_bare``
-one thread could reach with the kernels as they are (docs/performance.md, "What bounds
-each scene").
+one thread could reach with the kernels as they are (docs/performance.md, "The compiled
+kernels' ceiling").
 """
 
 from __future__ import annotations
