@@ -212,11 +212,11 @@ class PulseCuller:
         from ..kernels.cull import cull_by_grid_cones
 
         n = len(batch)
-        trajectories = [ctx.sensor_trajectory] + [target.trajectory for target in ctx.targets]
         if n == 0:
             return np.arange(0, dtype=np.int64)
         if _one_pose_a_frame(ctx):
             return self.keep(ctx, batch, t_frame)  # one pose each: no per-pulse poses either
+        trajectories = [ctx.sensor_trajectory] + [target.trajectory for target in ctx.targets]
         t = batch.t
         t0, t1 = (float(t.min()), float(t.max())) if span is None else span
         rates = [motion_rates(tr, t0, t1) for tr in trajectories]
